@@ -1,0 +1,8 @@
+"""avq's agents and the registry of agent names."""
+
+from avq.agents.avq_sarsa import AVQSarsa
+from avq.agents.base import BaseAgent, load
+from avq.agents.registry import AGENTS, make_agent
+from avq.agents.tabular import TabularSarsa
+
+__all__ = ["AVQSarsa", "TabularSarsa", "BaseAgent", "AGENTS", "make_agent", "load"]

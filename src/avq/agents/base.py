@@ -1,0 +1,405 @@
+"""What every avq agent shares: parameters, seeding, the ``learn`` budget loop,
+episode records, ``predict`` plumbing and saving.
+
+An agent subclass implements the learning itself in three methods:
+``_setup()`` (allocate learned state), ``_begin_episode()`` and
+``_advance(max_steps)`` (run primitive steps of the current episode).
+"""
+
+from __future__ import annotations
+
+import inspect
+import io
+import json
+import os
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+from typing import Any, Callable, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+__all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
+
+FORMAT_VERSION = 1
+
+#: One row of the per-episode record.
+EpisodeRecord = dict[str, Any]
+#: ``callback(agent, record)`` after every episode; returning ``False`` stops ``learn``.
+Callback = Callable[["BaseAgent", EpisodeRecord], "bool | None"]
+
+_AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
+
+
+def _make_env(env: gym.Env | str) -> gym.Env:
+    if isinstance(env, str):
+        import avq.envs  # noqa: F401  (registers avq's environments)
+
+        try:
+            return gym.make(env)
+        except gym.error.Error as exc:
+            raise ValueError(f"cannot make environment {env!r}: {exc}") from None
+    if not isinstance(env, gym.Env):
+        raise TypeError(f"env must be a gymnasium.Env or a registered id, not {type(env).__name__}")
+    return env
+
+
+def check_range(name: str, value: Any, low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> float:
+    """Return ``value`` as a float if it lies in the interval, else raise a ``ValueError`` naming it."""
+    lb = "(" if low_open else "["
+    rb = ")" if high_open else "]"
+    interval = f"{lb}{low}, {high}{rb}"
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a number in {interval}, not {value!r}")
+    v = float(value)
+    ok = np.isfinite(v) or (v == high and high == np.inf)
+    ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
+    if not ok:
+        raise ValueError(f"{name} must be in {interval}, not {value!r}")
+    return v
+
+
+def check_int(name: str, value: Any, low: int, *, allow_none: bool = False) -> int | None:
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        kind = f"an integer >= {low}" + (" or None" if allow_none else "")
+        raise ValueError(f"{name} must be {kind}, not {value!r}")
+    return int(value)
+
+
+def _space_to_json(space: spaces.Space) -> dict[str, Any]:
+    if isinstance(space, spaces.Discrete):
+        return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
+    if isinstance(space, spaces.Box):
+        return {
+            "type": "Box",
+            "shape": list(space.shape),
+            "low": np.asarray(space.low, dtype=np.float64).ravel().tolist(),
+            "high": np.asarray(space.high, dtype=np.float64).ravel().tolist(),
+        }
+    return {"type": type(space).__name__}
+
+
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` so that a crash leaves the old file or the new one."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+class BaseAgent:
+    """Base class of avq's agents (see :class:`avq.AVQSarsa` for the full API).
+
+    Construction stores and checks hyper-parameters only. Learned state lives in
+    attributes ending in ``_`` and is created on the first :meth:`learn`.
+    """
+
+    #: Registry of learned arrays saved by :meth:`save` (name -> attribute).
+    _saved_arrays: ClassVar[tuple[str, ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        _AGENT_CLASSES[cls.__name__] = cls
+
+    def __init__(self, env: gym.Env | str, seed: int | None) -> None:
+        self.env = _make_env(env)
+        self.seed = check_int("seed", seed, 0, allow_none=True)
+        self._check_spaces(self.env.observation_space, self.env.action_space)
+        self.n_actions = int(self.env.action_space.n)  # type: ignore[attr-defined]
+        seq = np.random.SeedSequence(self.seed)
+        agent_seq, env_seq, predict_seq = seq.spawn(3)
+        self._rng = np.random.default_rng(agent_seq)
+        self._predict_rng = np.random.default_rng(predict_seq)
+        self._env_seed: int | None = int(env_seq.generate_state(1)[0])
+        self.num_timesteps = 0
+        self.num_episodes = 0
+        self.history_: list[EpisodeRecord] = []
+        self._in_episode = False
+        self._wall_s = 0.0
+        self._is_setup = False
+
+    # -- parameters (scikit-learn style) ----------------------------------------------
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        sig = inspect.signature(cls.__init__)
+        return [p for p in sig.parameters if p not in ("self", "env")]
+
+    def get_params(self) -> dict[str, Any]:
+        """The constructor's hyper-parameters, read from its signature."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+    # -- to implement -----------------------------------------------------------------
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        raise NotImplementedError
+
+    def _setup(self) -> None:
+        raise NotImplementedError
+
+    def _begin_episode(self, obs: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        """Run at most ``max_steps`` primitive steps; return (steps run, episode ended)."""
+        raise NotImplementedError
+
+    def _end_episode(self) -> EpisodeRecord:
+        raise NotImplementedError
+
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    # -- learning -----------------------------------------------------------------------
+    def learn(
+        self,
+        total_episodes: int | None = None,
+        total_timesteps: int | None = None,
+        callback: Callback | None = None,
+        progress_bar: bool = False,
+    ) -> "BaseAgent":
+        """Learn for a number of episodes or of primitive environment steps.
+
+        Exactly one budget must be given. ``learn`` continues where the previous call
+        stopped (even inside an episode), so ``learn(a)`` then ``learn(b)`` gives the
+        same result as ``learn(a + b)`` with the same seed.
+
+        Args:
+            total_episodes: Number of episodes to finish in this call.
+            total_timesteps: Number of primitive environment steps to take in this call.
+            callback: ``callback(agent, record)`` after every episode; ``False`` stops.
+            progress_bar: Show a tqdm progress bar.
+
+        Returns:
+            self
+        """
+        if (total_episodes is None) == (total_timesteps is None):
+            raise ValueError("give exactly one of total_episodes or total_timesteps")
+        if total_episodes is not None:
+            check_int("total_episodes", total_episodes, 0)
+        if total_timesteps is not None:
+            check_int("total_timesteps", total_timesteps, 0)
+        if callback is not None and not callable(callback):
+            raise TypeError("callback must be callable as callback(agent, record)")
+        if not self._is_setup:
+            self._setup()
+            self._is_setup = True
+        bar = None
+        if progress_bar:
+            from tqdm.auto import tqdm
+
+            total = total_episodes if total_episodes is not None else total_timesteps
+            unit = "episode" if total_episodes is not None else "step"
+            bar = tqdm(total=total, unit=unit, desc=type(self).__name__, leave=False)
+        steps_left = total_timesteps
+        episodes_left = total_episodes
+        t0 = time.perf_counter()
+        try:
+            while (steps_left is None or steps_left > 0) and (episodes_left is None or episodes_left > 0):
+                if not self._in_episode:
+                    obs, _ = self.env.reset(seed=self._env_seed)
+                    self._env_seed = None  # seed once; later resets continue the env's stream
+                    self._begin_episode(obs)
+                    self._in_episode = True
+                n, ended = self._advance(steps_left if steps_left is not None else 1 << 62)
+                self.num_timesteps += n
+                if steps_left is not None:
+                    steps_left -= n
+                    if bar is not None:
+                        bar.update(n)
+                if ended:
+                    self._in_episode = False
+                    self.num_episodes += 1
+                    self._wall_s += time.perf_counter() - t0
+                    t0 = time.perf_counter()
+                    record = self._end_episode()
+                    record["episode"] = self.num_episodes
+                    record["wall_s"] = self._wall_s
+                    self.history_.append(record)
+                    if episodes_left is not None:
+                        episodes_left -= 1
+                        if bar is not None:
+                            bar.update(1)
+                    if callback is not None and callback(self, record) is False:
+                        break
+        finally:
+            self._wall_s += time.perf_counter() - t0
+            if bar is not None:
+                bar.close()
+        return self
+
+    def episode_history(self) -> dict[str, np.ndarray]:
+        """The per-episode records as columns (one array per field)."""
+        if not self.history_:
+            return {}
+        keys = self.history_[0].keys()
+        return {k: np.array([r[k] for r in self.history_]) for k in keys}
+
+    # -- acting -------------------------------------------------------------------------
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[int | np.ndarray, None]:
+        """The action for one observation, or an array of actions for a batch.
+
+        ``deterministic=True`` is the greedy action (lowest index on ties). With
+        ``deterministic=False`` the action is ε-greedy, drawn from a generator of its
+        own so that queries never change what ``learn`` does. ``state`` and
+        ``episode_start`` exist for Stable-Baselines3 compatibility and are unused.
+        """
+        if not self._is_setup:
+            raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() before predict()")
+        obs = np.asarray(observation, dtype=np.float64)
+        shape = self._obs_shape()
+        single = obs.shape == shape
+        if not single and (obs.ndim != len(shape) + 1 or obs.shape[1:] != shape):
+            raise ValueError(
+                f"observation has shape {obs.shape}; expected {shape} or a batch (b, {', '.join(map(str, shape))})"
+            )
+        batch = obs.reshape((1,) + shape) if single else obs
+        actions = self._greedy_actions(batch)
+        if not deterministic:
+            eps = float(getattr(self, "epsilon", 0.0))
+            explore = self._predict_rng.random(len(actions)) < eps
+            actions = np.where(explore, self._predict_rng.integers(self.n_actions, size=len(actions)), actions)
+        return (int(actions[0]), None) if single else (actions.astype(np.int64), None)
+
+    def _obs_shape(self) -> tuple[int, ...]:
+        return tuple(self.env.observation_space.shape or ())
+
+    # -- saving -------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """JSON-able counters and the learned arrays; subclasses extend."""
+        meta = {
+            "num_timesteps": self.num_timesteps,
+            "num_episodes": self.num_episodes,
+            "rng": self._rng.bit_generator.state,
+        }
+        return meta, {}
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        self.num_timesteps = int(meta["num_timesteps"])
+        self.num_episodes = int(meta["num_episodes"])
+        self._rng.bit_generator.state = meta["rng"]
+        self._env_seed = None
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Save parameters (JSON) and learned arrays (``.npz``) in one zip file.
+
+        Nothing is pickled. The file is written atomically. Returns the path written
+        (``.zip`` is appended when the path has no suffix).
+        """
+        from avq import __version__
+
+        path = Path(path)
+        if path.suffix == "":
+            path = path.with_suffix(".zip")
+        state, arrays = self._state_dict()
+        meta = {
+            "format": "avq-agent",
+            "format_version": FORMAT_VERSION,
+            "avq_version": __version__,
+            "class": type(self).__name__,
+            "params": self.get_params(),
+            "observation_space": _space_to_json(self.env.observation_space),
+            "action_space": _space_to_json(self.env.action_space),
+            "env_id": getattr(getattr(self.env, "spec", None), "id", None),
+            "state": state,
+        }
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        out = io.BytesIO()
+        with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            zf.writestr("meta.json", json.dumps(meta, indent=1))
+            zf.writestr("arrays.npz", buf.getvalue())
+        _atomic_write_bytes(path, out.getvalue())
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, env: gym.Env | str | None = None) -> "BaseAgent":
+        """Load an agent saved by :meth:`save`; see :func:`avq.load`."""
+        agent = load(path, env=env)
+        if not isinstance(agent, cls):
+            raise ValueError(f"{path}: holds a {type(agent).__name__}, not a {cls.__name__}")
+        return agent
+
+
+def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    try:
+        with zipfile.ZipFile(path) as zf:
+            meta = json.loads(zf.read("meta.json").decode("utf-8"))
+            raw = zf.read("arrays.npz")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such model file") from None
+    except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError, OSError, EOFError) as exc:
+        raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
+        raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise ValueError(
+            f"{path}: model format version {meta.get('format_version')} is not supported "
+            f"(this avq reads version {FORMAT_VERSION})"
+        )
+    try:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise ValueError(f"{path}: the model's arrays are unreadable ({exc})") from None
+    return meta, arrays
+
+
+def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
+    """Load any avq agent saved with ``agent.save(path)``.
+
+    Args:
+        path: The saved file.
+        env: The environment to attach. Without one, the environment is made from
+            the id stored in the file (which must be registered).
+
+    Raises:
+        ValueError: the file is not an avq model, is damaged, or its spaces do not
+            match ``env``'s.
+    """
+    path = Path(path)
+    if not path.exists() and path.suffix == "" and path.with_suffix(".zip").exists():
+        path = path.with_suffix(".zip")
+    meta, arrays = _read_model_file(path)
+    cls = _AGENT_CLASSES.get(meta.get("class", ""))
+    if cls is None:
+        raise ValueError(f"{path}: unknown agent class {meta.get('class')!r}")
+    if env is None:
+        if not meta.get("env_id"):
+            raise ValueError(f"{path}: the model records no environment id; pass env= to load it")
+        env = meta["env_id"]
+    params = dict(meta["params"])
+    agent = cls(env, **params)
+    for key in ("observation_space", "action_space"):
+        want = meta[key]
+        have = _space_to_json(getattr(agent.env, key))
+        if want != have:
+            raise ValueError(f"{path}: the model was saved for {key} {want}, but env has {have}")
+    agent._setup()
+    agent._is_setup = True
+    try:
+        agent._load_state_dict(meta["state"], arrays)
+    except (KeyError, ValueError, IndexError) as exc:
+        raise ValueError(f"{path}: the model's state is incomplete or inconsistent ({exc})") from None
+    return agent

@@ -1,0 +1,192 @@
+"""The grid maze of Lau, Mak & Lee (2002), SPEC §6, as a Gymnasium environment."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from avq.envs.layouts import MOVES, Layout, LayoutSpec, load_layout
+
+__all__ = ["GridMaze", "NORTH", "EAST", "SOUTH", "WEST"]
+
+NORTH, EAST, SOUTH, WEST = 0, 1, 2, 3
+_DX = tuple(int(v) for v in MOVES[:, 0])
+_DY = tuple(int(v) for v in MOVES[:, 1])
+
+GOAL_REWARD = 10.0
+MOVE_REWARD = -1.0
+BUMP_REWARD = -10.0
+
+_COLOURS = {
+    "wall": (40, 40, 40),
+    "free": (235, 235, 235),
+    "goal": (60, 170, 75),
+    "start": (160, 190, 230),
+    "robot": (200, 50, 50),
+}
+
+
+class GridMaze(gym.Env[np.ndarray, np.int64]):
+    """A robot moves on the free positions of a grid maze towards a goal.
+
+    ## Description
+    The maze of the paper (SPEC §6): a grid of free positions and barriers. The
+    robot's state is its position ``(x, y)``; ``x`` is the column and ``y`` the
+    row, both from 0 at the layout's top-left corner. Moving off the grid is a
+    bump, so the layout's border need not be walls.
+
+    ## Actions
+    ``Discrete(4)``: 0 North (y - 1), 1 East (x + 1), 2 South (y + 1), 3 West (x - 1).
+
+    ## Observations
+    ``Box(float32, (2,))`` holding ``(x, y)``, bounded by the grid.
+
+    ## Rewards
+    +10 on reaching the goal; -1 for every other move; -10 for bumping into a
+    wall or the grid's edge, in which case the robot stays where it is and
+    ``info["collision"]`` is True.
+
+    ## Episode end
+    Terminates on reaching the goal. ``avq/GridMaze-v0`` is registered with
+    ``max_episode_steps=100`` (the paper's trial length), which truncates.
+
+    ## Arguments
+    - ``layout``: preset name (``"lau2002"``, the default), file path, or list of strings.
+    - ``start``: ``"random"`` (uniform over free non-goal positions, drawn from
+      ``self.np_random``) or ``"fixed"`` (the layout's ``S``).
+      ``reset(options={"start": (x, y)})`` starts at a given free position.
+    - ``render_mode``: ``"ansi"`` or ``"rgb_array"``.
+
+    ## Info
+    ``collision`` (bool) and ``distance`` (shortest-path steps to the goal from
+    the new position). ``self.layout.distances`` holds all of them.
+    """
+
+    metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 8}
+
+    def __init__(
+        self,
+        layout: LayoutSpec = "lau2002",
+        start: str = "random",
+        render_mode: str | None = None,
+    ) -> None:
+        self.layout: Layout = load_layout(layout)
+        if start not in ("random", "fixed"):
+            raise ValueError(f"start must be 'random' or 'fixed', not {start!r}")
+        if start == "fixed" and self.layout.start is None:
+            raise ValueError(
+                f"layout {self.layout.name}: start='fixed' needs an 'S' in the layout; "
+                "add one or use start='random'"
+            )
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
+        self.start = start
+        self.render_mode = render_mode
+        h, w = self.layout.height, self.layout.width
+        self.observation_space = spaces.Box(
+            low=np.zeros(2, dtype=np.float32),
+            high=np.array([w - 1, h - 1], dtype=np.float32),
+            dtype=np.float32,
+        )
+        self.action_space = spaces.Discrete(4)
+        self._starts = self.layout.free_positions(include_goal=False)
+        # Plain Python copies of the layout for a fast step().
+        self._walls = self.layout.walls.tolist()
+        self._dist = self.layout.distances.tolist()
+        self._w, self._h = w, h
+        self._gx, self._gy = self.layout.goal
+        self._x, self._y = 0, 0
+
+    # -- Gymnasium API -------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        start = None if options is None else options.get("start")
+        if start is not None:
+            self._x, self._y = self._checked_start(start)
+        elif self.start == "fixed":
+            self._x, self._y = self.layout.start  # type: ignore[misc]
+        else:
+            x, y = self._starts[self.np_random.integers(len(self._starts))]
+            self._x, self._y = int(x), int(y)
+        return self._obs(), self._info(False)
+
+    def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        try:
+            a = int(action)
+        except (TypeError, ValueError):
+            a = -1
+        if not (0 <= a < 4 and a == action):
+            raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
+        x = self._x + _DX[a]
+        y = self._y + _DY[a]
+        terminated = False
+        if not (0 <= x < self._w and 0 <= y < self._h) or self._walls[y][x]:
+            reward, collision = BUMP_REWARD, True
+        else:
+            self._x, self._y = x, y
+            collision = False
+            if x == self._gx and y == self._gy:
+                reward, terminated = GOAL_REWARD, True
+            else:
+                reward = MOVE_REWARD
+        return self._obs(), reward, terminated, False, self._info(collision)
+
+    def render(self) -> str | np.ndarray | None:
+        if self.render_mode == "ansi":
+            return self._render_text()
+        if self.render_mode == "rgb_array":
+            return self._render_rgb()
+        return None
+
+    # -- helpers -----------------------------------------------------------------------
+    @property
+    def position(self) -> tuple[int, int]:
+        """The robot's current ``(x, y)``."""
+        return self._x, self._y
+
+    def _checked_start(self, start: Any) -> tuple[int, int]:
+        try:
+            x, y = (int(v) for v in start)
+        except (TypeError, ValueError):
+            raise ValueError(f"options['start'] must be a pair (x, y), not {start!r}") from None
+        if not (0 <= x < self.layout.width and 0 <= y < self.layout.height):
+            raise ValueError(
+                f"options['start']=({x}, {y}) is outside the {self.layout.width}x{self.layout.height} maze"
+            )
+        if self.layout.walls[y, x]:
+            raise ValueError(f"options['start']=({x}, {y}) is on a wall; choose a free position")
+        return x, y
+
+    def _obs(self) -> np.ndarray:
+        return np.array((self._x, self._y), dtype=np.float32)
+
+    def _info(self, collision: bool) -> dict[str, Any]:
+        return {"collision": collision, "distance": self._dist[self._y][self._x]}
+
+    def _render_text(self) -> str:
+        grid = [list(r.replace("S", ".")) for r in self.layout.rows]
+        x, y = self.position
+        grid[y][x] = "R"
+        return "\n".join("".join(r) for r in grid) + "\n"
+
+    def _render_rgb(self, cell: int = 16) -> np.ndarray:
+        lay = self.layout
+        img = np.empty((lay.height, lay.width, 3), dtype=np.uint8)
+        img[:] = _COLOURS["free"]
+        img[lay.walls] = _COLOURS["wall"]
+        gx, gy = lay.goal
+        img[gy, gx] = _COLOURS["goal"]
+        img = np.repeat(np.repeat(img, cell, axis=0), cell, axis=1)
+        # The robot: a disc in its cell.
+        x, y = self.position
+        yy, xx = np.mgrid[0:cell, 0:cell]
+        r = cell / 2 - 0.5
+        disc = (xx - r) ** 2 + (yy - r) ** 2 <= (0.75 * r) ** 2
+        block = img[y * cell:(y + 1) * cell, x * cell:(x + 1) * cell]
+        block[disc] = _COLOURS["robot"]
+        return img

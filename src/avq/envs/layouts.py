@@ -1,0 +1,201 @@
+"""Maze layouts: the presets, parsing and validation, and shortest-path distances.
+
+A layout is a list of equally long strings: ``#`` wall, ``.`` free, ``S`` start,
+``G`` goal. Coordinates are ``(x, y)`` with ``x`` the column and ``y`` the row,
+both from 0 at the top-left corner (SPEC §6).
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence, Union
+
+import numpy as np
+
+__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout"]
+
+#: Preset layouts. ``lau2002`` reconstructs the paper's maze (SPEC §6).
+MAPS: dict[str, list[str]] = {
+    "lau2002": [
+        "##############",
+        "#S...........#",
+        "#............#",
+        "#..#######...#",
+        "#........#...#",
+        "#........#.#.#",
+        "#..#.....#.#.#",
+        "#..#.....#.#G#",
+        "#..#.....###.#",
+        "#..#.........#",
+        "#..#.........#",
+        "##############",
+    ],
+    "open5": [
+        "S....",
+        ".....",
+        ".....",
+        ".....",
+        "....G",
+    ],
+    "corridor": [
+        "#######",
+        "#S...G#",
+        "#######",
+    ],
+}
+
+LayoutSpec = Union[str, os.PathLike, Sequence[str]]
+
+_ALLOWED = set("#.SG")
+
+# Action index -> (dx, dy): North, East, South, West (y grows downwards).
+MOVES = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]], dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A parsed, validated maze layout.
+
+    Attributes:
+        name: Preset name, file path, or ``"<custom>"``.
+        rows: The layout's rows as given.
+        walls: Boolean array ``(height, width)``, True on a wall.
+        start: The ``S`` position ``(x, y)``, or None when the layout has none.
+        goal: The ``G`` position ``(x, y)``.
+        distances: Shortest-path steps to the goal ``(height, width)``; -1 on walls.
+    """
+
+    name: str
+    rows: tuple[str, ...]
+    walls: np.ndarray
+    start: tuple[int, int] | None
+    goal: tuple[int, int]
+    distances: np.ndarray = field(repr=False)
+
+    @property
+    def height(self) -> int:
+        return self.walls.shape[0]
+
+    @property
+    def width(self) -> int:
+        return self.walls.shape[1]
+
+    @property
+    def n_states(self) -> int:
+        """Number of free positions, goal included."""
+        return int((~self.walls).sum())
+
+    def free_positions(self, include_goal: bool = False) -> np.ndarray:
+        """Free positions as an ``(k, 2)`` int array of ``(x, y)``, row-major order."""
+        ys, xs = np.nonzero(~self.walls)
+        pos = np.stack([xs, ys], axis=1).astype(np.int64)
+        if not include_goal:
+            pos = pos[~((pos[:, 0] == self.goal[0]) & (pos[:, 1] == self.goal[1]))]
+        return pos
+
+    def is_free(self, x: int, y: int) -> bool:
+        return 0 <= x < self.width and 0 <= y < self.height and not self.walls[y, x]
+
+
+def _bfs(walls: np.ndarray, goal: tuple[int, int]) -> np.ndarray:
+    h, w = walls.shape
+    dist = np.full((h, w), -1, dtype=np.int64)
+    gx, gy = goal
+    dist[gy, gx] = 0
+    queue = deque([(gx, gy)])
+    while queue:
+        x, y = queue.popleft()
+        for dx, dy in MOVES:
+            nx, ny = x + int(dx), y + int(dy)
+            if 0 <= nx < w and 0 <= ny < h and not walls[ny, nx] and dist[ny, nx] < 0:
+                dist[ny, nx] = dist[y, x] + 1
+                queue.append((nx, ny))
+    return dist
+
+
+def parse_layout(rows: Sequence[str], name: str = "<custom>") -> Layout:
+    """Validate a list of strings and return a :class:`Layout`.
+
+    Raises:
+        ValueError: naming the problem and where it is (row, column).
+    """
+    if isinstance(rows, str):
+        rows = rows.splitlines()
+    rows = [r.rstrip("\r\n") for r in rows]
+    while rows and not rows[-1].strip():
+        rows.pop()
+    if not rows or not any(r for r in rows):
+        raise ValueError(f"layout {name}: the layout is empty; give rows of '#', '.', 'S', 'G'")
+    width = len(rows[0])
+    for y, row in enumerate(rows):
+        if len(row) != width:
+            raise ValueError(
+                f"layout {name}: row {y} has {len(row)} characters but row 0 has {width}; "
+                "all rows must have the same length"
+            )
+        for x, ch in enumerate(row):
+            if ch not in _ALLOWED:
+                raise ValueError(
+                    f"layout {name}: unknown character {ch!r} at x={x}, y={y}; "
+                    "use '#' wall, '.' free, 'S' start, 'G' goal"
+                )
+    cells = np.array([list(r) for r in rows])
+    walls = cells == "#"
+    goals = [(int(x), int(y)) for y, x in zip(*np.nonzero(cells == "G"))]
+    starts = [(int(x), int(y)) for y, x in zip(*np.nonzero(cells == "S"))]
+    if not goals:
+        raise ValueError(f"layout {name}: no goal; mark exactly one position with 'G'")
+    if len(goals) > 1:
+        raise ValueError(f"layout {name}: {len(goals)} goals at {goals}; mark exactly one 'G'")
+    if len(starts) > 1:
+        raise ValueError(f"layout {name}: {len(starts)} starts at {starts}; mark at most one 'S'")
+    goal = goals[0]
+    dist = _bfs(walls, goal)
+    cut_off = [(int(x), int(y)) for y, x in zip(*np.nonzero((~walls) & (dist < 0)))]
+    if cut_off:
+        shown = ", ".join(f"({x}, {y})" for x, y in cut_off[:5])
+        more = f" and {len(cut_off) - 5} more" if len(cut_off) > 5 else ""
+        raise ValueError(
+            f"layout {name}: free positions cannot reach the goal: {shown}{more}; "
+            "wall them off or open a path"
+        )
+    return Layout(
+        name=name,
+        rows=tuple(rows),
+        walls=walls,
+        start=starts[0] if starts else None,
+        goal=goal,
+        distances=dist,
+    )
+
+
+def load_layout(layout: LayoutSpec) -> Layout:
+    """Resolve a preset name, a file path, a multi-line string or a list of rows."""
+    if isinstance(layout, Layout):
+        return layout
+    if isinstance(layout, (str, os.PathLike)):
+        text = os.fspath(layout)
+        if text in MAPS:
+            return parse_layout(MAPS[text], name=text)
+        if "\n" in text:
+            return parse_layout(text.splitlines())
+        path = Path(text)
+        if path.is_file():
+            try:
+                content = path.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                raise ValueError(f"layout {text}: cannot read the file ({exc})") from None
+            return parse_layout(content.splitlines(), name=text)
+        raise ValueError(
+            f"layout {text!r} is neither a preset ({', '.join(sorted(MAPS))}) nor a readable file"
+        )
+    try:
+        rows = [str(r) for r in layout]
+    except TypeError:
+        raise ValueError(
+            f"layout must be a preset name, a file path or a list of strings, not {type(layout).__name__}"
+        ) from None
+    return parse_layout(rows)
