@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["epsilon_greedy", "greedy", "sarsa_td_error", "sarsa_lambda_update", "mean_square_difference"]
+__all__ = ["epsilon_greedy", "greedy", "sarsa_td_error", "sarsa_lambda_update"]
 
 
 def greedy(q_row: np.ndarray) -> int:
@@ -75,9 +75,3 @@ def sarsa_lambda_update(
     ev = e[:n_rows]
     qv += step * ev
     ev *= trace_decay
-
-
-def mean_square_difference(q_i: np.ndarray, q_j: np.ndarray) -> float:
-    """``(1/m) * sum_a (q_i[a] - q_j[a])**2``, the merge criterion of SPEC §4."""
-    d = q_i - q_j
-    return float(d @ d) / d.shape[0]

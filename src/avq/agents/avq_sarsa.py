@@ -8,9 +8,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._td import epsilon_greedy, mean_square_difference, sarsa_lambda_update, sarsa_td_error
+from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range
 from avq.quantizer import Codebook
+from avq.rules import APPEND, CHI, collision_rule, may_append, merged_values, similar_pairs
 
 __all__ = ["AVQSarsa"]
 
@@ -187,57 +188,47 @@ class AVQSarsa(BaseAgent):
 
     def _may_append(self, dist_nearest: float) -> bool:
         """Whether a point at ``dist_nearest`` from its nearest vector may become a vector."""
-        if dist_nearest <= self.d_min:
-            return False  # SPEC §3: never within d_min of an existing vector
+        if not may_append(dist_nearest, self.d_min):
+            return False
         if self._cb.size >= self.max_cells:
             self._ep.refused += 1
             return False
         return True
 
     def _grow_on_collision(self, x: np.ndarray, i: int, a: int, j: int, dist_j: float) -> int:
-        """SPEC §3, collision rule at ``x`` (nearest vector ``j`` at ``dist_j``).
+        """Apply :func:`avq.rules.collision_rule` at ``x`` (nearest vector ``j`` at ``dist_j``).
 
-        Within ``d_min`` of the current cell's vector: ``Q[i, a] = chi``. Otherwise
-        ``x`` is appended as cell ``c`` with ``Q[c] = Q[i]``, and the same rule at
-        ``c`` (distance 0) gives ``Q[c, a] = chi``. Returns the cell of ``x`` afterwards.
+        Returns the cell ``x`` belongs to afterwards.
         """
         dist_i = dist_j if j == i else self._cb.distance(i, x)
-        if dist_i <= self.d_min:
+        outcome = collision_rule(dist_i, dist_j, self.d_min)
+        if outcome == CHI:
             self._q[i, a] = self.chi
-            return j
-        if not self._may_append(dist_j):
-            return j
-        c = self._append(x, parent=i)
-        self._q[c, a] = self.chi
-        return c
+        elif outcome == APPEND and self._may_append(dist_j):
+            j = self._append(x, parent=i)
+            self._q[j, a] = self.chi  # the rule at c itself: ||y_c - x|| = 0 <= d_min
+        return j
 
-    def _grow_on_value_change(self, x: np.ndarray, j: int, dist_j: float, delta: float) -> int:
+    def _grow_on_value_change(self, x: np.ndarray, j: int, delta: float) -> int:
         """SPEC §3, optional value-change trigger. Returns the cell of ``x`` afterwards."""
-        if self.value_trigger is None or abs(delta) < self.value_trigger or not self._may_append(dist_j):
+        if self.value_trigger is None or abs(delta) < self.value_trigger:
+            return j
+        if not self._may_append(self._cb.distance(j, x)):
             return j
         return self._append(x, parent=j)
 
     def _merge_pass(self) -> int:
         """SPEC §4: merge every mutually nearest pair whose profiles differ by less than ``rho``."""
-        pairs = self._cb.mutual_nearest_pairs()
+        pairs = similar_pairs(self._cb.mutual_nearest_pairs(), self._q, self.rho)
         if len(pairs) == 0:
             return 0
-        q = self._q
-        similar = [
-            (i, j) for i, j in pairs if mean_square_difference(q[i], q[j]) < self.rho
-        ]
-        if not similar:
-            return 0
         p = self._cb.size
-        mapping = self._cb.merge(similar)
+        mapping = self._cb.merge(pairs)
         n_new = self._cb.size
-        merged = np.zeros((n_new, self.n_actions))
-        np.add.at(merged, mapping, q[:p])
-        merged /= np.bincount(mapping, minlength=n_new)[:, None]
-        self._q[:n_new] = merged
+        self._q[:n_new] = merged_values(self._q[:p], mapping, n_new)
         self._q[n_new:p] = 0.0
         self._e[:p] = 0.0
-        return len(similar)
+        return len(pairs)
 
     # -- the episode loop (SPEC §2, §5) ---------------------------------------------------
     def _begin_episode(self, obs: np.ndarray) -> None:
@@ -284,7 +275,7 @@ class AVQSarsa(BaseAgent):
                 delta = sarsa_td_error(q[i, a], ret, disc, q[j, a_next], False)
             sarsa_lambda_update(q, self._e, i, a, delta, self.alpha, disc * self.lam, replacing, cb.size)
             if not terminated and self.value_trigger is not None:
-                j = self._grow_on_value_change(x, j, cb.distance(j, x), delta)
+                j = self._grow_on_value_change(x, j, delta)
             i, a = j, a_next
             ret, disc = 0.0, 1.0
             if terminated or truncated:

@@ -116,11 +116,10 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), self._info(False)
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        try:
+        a = int(action) if isinstance(action, (int, np.integer)) and not isinstance(action, bool) else -1
+        if a < 0 and isinstance(action, np.ndarray) and action.shape == () and action.dtype.kind in "iu":
             a = int(action)
-        except (TypeError, ValueError):
-            a = -1
-        if not (0 <= a < 4 and a == action):
+        if not 0 <= a < 4:
             raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
         x = self._x + _DX[a]
         y = self._y + _DY[a]
@@ -151,15 +150,20 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
 
     def _checked_start(self, start: Any) -> tuple[int, int]:
         try:
-            x, y = (int(v) for v in start)
+            x, y = start
+            if any(float(v) != int(v) for v in (x, y)):
+                raise ValueError
+            x, y = int(x), int(y)
         except (TypeError, ValueError):
-            raise ValueError(f"options['start'] must be a pair (x, y), not {start!r}") from None
+            raise ValueError(f"options['start'] must be a pair of integers (x, y), not {start!r}") from None
         if not (0 <= x < self.layout.width and 0 <= y < self.layout.height):
             raise ValueError(
                 f"options['start']=({x}, {y}) is outside the {self.layout.width}x{self.layout.height} maze"
             )
         if self.layout.walls[y, x]:
             raise ValueError(f"options['start']=({x}, {y}) is on a wall; choose a free position")
+        if (x, y) == self.layout.goal:
+            raise ValueError(f"options['start']=({x}, {y}) is the goal; choose a free non-goal position")
         return x, y
 
     def _obs(self) -> np.ndarray:

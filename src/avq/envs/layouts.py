@@ -127,6 +127,8 @@ def parse_layout(rows: Sequence[str], name: str = "<custom>") -> Layout:
     rows = [r.rstrip("\r\n") for r in rows]
     while rows and not rows[-1].strip():
         rows.pop()
+    while rows and not rows[0].strip():
+        rows.pop(0)
     if not rows or not any(r for r in rows):
         raise ValueError(f"layout {name}: the layout is empty; give rows of '#', '.', 'S', 'G'")
     width = len(rows[0])
@@ -153,6 +155,8 @@ def parse_layout(rows: Sequence[str], name: str = "<custom>") -> Layout:
     if len(starts) > 1:
         raise ValueError(f"layout {name}: {len(starts)} starts at {starts}; mark at most one 'S'")
     goal = goals[0]
+    if int((~walls).sum()) < 2:
+        raise ValueError(f"layout {name}: the goal is the only free position; add free positions to start from")
     dist = _bfs(walls, goal)
     cut_off = [(int(x), int(y)) for y, x in zip(*np.nonzero((~walls) & (dist < 0)))]
     if cut_off:

@@ -1,0 +1,64 @@
+"""The paper's codebook rules as named functions (SPEC §3 and §4).
+
+Each function decides; it changes nothing. The agent applies the decisions to
+its codebook and values. Read them against SPEC.md line by line.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CHI", "APPEND", "KEEP", "collision_rule", "may_append", "similar_pairs", "merged_values"]
+
+#: Outcomes of :func:`collision_rule`.
+CHI, APPEND, KEEP = "chi", "append", "keep"
+
+
+def may_append(dist_to_nearest: float, d_min: float) -> bool:
+    """SPEC §3: a new vector is never appended within ``d_min`` of an existing one."""
+    return dist_to_nearest > d_min
+
+
+def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> str:
+    """SPEC §3, on a collision at ``x`` while in cell ``i``.
+
+    Args:
+        dist_to_own: ``||y_i - x||`` (scaled), the current cell's vector to ``x``.
+        dist_to_nearest: distance from ``x`` to its nearest vector (``<= dist_to_own``).
+        d_min: minimum resolution.
+
+    Returns:
+        ``CHI`` when ``||y_i - x|| <= d_min``: set ``Q[i, a] = chi``.
+        ``APPEND`` otherwise, if ``x`` is farther than ``d_min`` from every vector:
+        append ``x`` as cell ``c``, ``Q[c] = Q[i]``, then ``Q[c, a] = chi``.
+        ``KEEP`` when another vector lies within ``d_min`` of ``x``: no append and
+        no assignment (only possible when ``x`` has left cell ``i``).
+    """
+    if dist_to_own <= d_min:
+        return CHI
+    return APPEND if may_append(dist_to_nearest, d_min) else KEEP
+
+
+def similar_pairs(pairs: np.ndarray, q: np.ndarray, rho: float) -> np.ndarray:
+    """SPEC §4, criterion 2: the mutual-nearest ``pairs`` whose profiles differ by less than ``rho``.
+
+    The difference is the mean over the ``m`` actions of the squared difference,
+    ``(1/m) * sum_a (Q[i, a] - Q[j, a])**2``.
+    """
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    if len(pairs) == 0:
+        return pairs
+    d = q[pairs[:, 0]] - q[pairs[:, 1]]
+    msd = (d * d).mean(axis=1)
+    return pairs[msd < rho]
+
+
+def merged_values(q: np.ndarray, mapping: np.ndarray, n_new: int) -> np.ndarray:
+    """SPEC §4: rows of ``q`` after a merge; merged cells get ``(Q[i] + Q[j]) / 2``.
+
+    ``mapping[old] = new`` as returned by :meth:`avq.Codebook.merge`.
+    """
+    out = np.zeros((n_new, q.shape[1]))
+    np.add.at(out, mapping, q[: len(mapping)])
+    out /= np.bincount(mapping, minlength=n_new)[:, None]
+    return out

@@ -1,0 +1,275 @@
+"""Every rule of SPEC §2-§5, each in a situation built by hand with the numbers written out.
+
+The scripted environment plays back fixed observations, rewards and collisions
+whatever the agent does, and logs the actions the agent took.
+"""
+
+import numpy as np
+import pytest
+
+from avq import AVQSarsa
+from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.rules import APPEND, CHI, KEEP, collision_rule, merged_values, similar_pairs
+
+from conftest import ScriptedEnv
+
+NO = False
+
+
+def agent_for(episodes, **kw):
+    params = dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.0, d_min=1.0, rho=0.0, chi=-4.0,
+                  q_init=0.0, merge_every=0, scale=1.0, seed=0)
+    params.update(kw)
+    env = ScriptedEnv(episodes)
+    return AVQSarsa(env, **params), env
+
+
+# -- SPEC §3: growing ---------------------------------------------------------------------
+
+def test_first_vector_is_the_first_observation_with_q_init():
+    agent, env = agent_for([((1.5, -2.0), [((1.5, -2.0), -1, True, NO, NO)])], q_init=3.0)
+    agent.learn(total_timesteps=0)
+    agent.learn(total_episodes=1)
+    assert agent.codebook_.tolist() == [[1.5, -2.0]]
+    a = env.actions[0][0]
+    # One terminal step: delta = -1 - 3 = -4; Q[0, a] = 3 + 0.5 * -4 = 1.
+    expected = np.full(2, 3.0)
+    expected[a] = 1.0
+    assert agent.q_.tolist() == [expected.tolist()]
+
+
+def test_collision_within_d_min_sets_chi_then_learns():
+    # From (0, 0), a bump at (0.5, 0): ||y_0 - x|| = 0.5 <= d_min = 1, so Q[0, a] = chi = -4.
+    # Then the transition is learned: a' is the other action (Q = 0 > -4), delta = -10 + 0 - (-4) = -6,
+    # Q[0, a] = -4 + 0.5 * -6 = -7.
+    agent, env = agent_for([((0, 0), [((0.5, 0), -10, NO, True, True)])])
+    agent.learn(total_episodes=1)
+    a = env.actions[0][0]
+    assert agent.n_cells == 1
+    q = np.zeros(2)
+    q[a] = -7.0
+    assert agent.q_.tolist() == [q.tolist()]
+    assert agent.history_[0]["appends"] == 0
+
+
+def test_collision_far_from_the_cell_appends_with_the_parents_profile():
+    # Episode 1 teaches Q[0, a1] = 4.5: two steps in cell 0, R = -1 + 10 = 9, terminal, 0.5 * 9.
+    # Episode 2 from (0, 0) bumps at (3, 0): 3 > d_min, so (3, 0) is appended as cell 1 with
+    # Q[1] = Q[0] (inherited), then Q[1, a2] = chi = -4.
+    ep1 = ((0, 0), [((0.2, 0), -1, NO, NO, NO), ((0.4, 0), 10, True, NO, NO)])
+    ep2 = ((0, 0), [((3, 0), -10, NO, True, True)])
+    agent, env = agent_for([ep1, ep2], q_init=0.0)
+    agent.learn(total_episodes=1)
+    a1 = env.actions[0][0]
+    assert env.actions[0] == [a1, a1]  # one decision, repeated while the cell stays the same
+    q0 = np.zeros(2)
+    q0[a1] = 4.5
+    assert agent.q_.tolist() == [q0.tolist()]
+    agent.learn(total_episodes=1)
+    a2 = env.actions[1][0]
+    assert a2 == a1  # greedy: Q[0, a1] = 4.5 is the best
+    assert agent.codebook_.tolist() == [[0, 0], [3, 0]]
+    q1 = q0.copy()
+    q1[a2] = -4.0
+    assert agent.q_[1].tolist() == q1.tolist()
+    # The transition (0, a2) -> 1: a' = the other action (0 > -4), delta = -10 + 0 - 4.5 = -14.5.
+    expected_q0 = q0.copy()
+    expected_q0[a2] = 4.5 + 0.5 * -14.5
+    assert agent.q_[0].tolist() == expected_q0.tolist()
+    assert agent.history_[1]["appends"] == 1
+
+
+def test_no_append_within_d_min_of_an_existing_vector():
+    # Cells at (0, 0) and (3, 0) (from a far bump). Then a bump from cell 0 lands at (2.5, 0):
+    # 2.5 from y_0 (> d_min) but 0.5 from y_1 (<= d_min): no append, and no chi.
+    ep1 = ((0, 0), [((3, 0), -10, NO, True, True)])
+    ep2 = ((0, 0), [((2.5, 0), -10, NO, True, True)])
+    agent, env = agent_for([ep1, ep2])
+    agent.learn(total_episodes=2)
+    assert agent.codebook_.tolist() == [[0, 0], [3, 0]]
+    assert agent.history_[1]["appends"] == 0
+
+
+def test_collision_rule_outcomes():
+    assert collision_rule(0.5, 0.5, 1.0) == CHI
+    assert collision_rule(1.0, 1.0, 1.0) == CHI  # <= d_min
+    assert collision_rule(1.01, 1.01, 1.0) == APPEND
+    assert collision_rule(2.5, 0.5, 1.0) == KEEP
+
+
+def test_value_change_trigger_appends_inheriting_the_end_cell():
+    # One step to (3, 0), truncated, reward -5: delta = -5 + Q[0, a'] - Q[0, a] = -5.
+    ep = ((0, 0), [((3, 0), -5, NO, True, NO)])
+    agent, env = agent_for([ep], value_trigger=4.0)
+    agent.learn(total_episodes=1)
+    a = env.actions[0][0]
+    assert agent.codebook_.tolist() == [[0, 0], [3, 0]]
+    q0 = np.zeros(2)
+    q0[a] = -2.5
+    assert agent.q_.tolist() == [q0.tolist(), q0.tolist()]  # cell 1 inherits Q[0] after the update
+
+
+def test_value_change_trigger_needs_a_large_error_and_distance():
+    ep = ((0, 0), [((3, 0), -5, NO, True, NO)])
+    for kw in (dict(value_trigger=6.0), dict(value_trigger=4.0, d_min=3.0), dict(value_trigger=None)):
+        agent, _ = agent_for([ep], **kw)
+        agent.learn(total_episodes=1)
+        assert agent.n_cells == 1, kw
+
+
+def test_max_cells_refuses_appends():
+    ep = ((0, 0), [((3, 0), -10, NO, True, True)])
+    agent, _ = agent_for([ep], max_cells=1)
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 1
+    assert agent.history_[0]["refused"] == 1
+
+
+# -- SPEC §4: merging -----------------------------------------------------------------------
+
+def _two_cell_agent(rho, merge_every=1):
+    # Episode 1 appends (3, 0) with Q[1] = [0, 0] except chi = -4 at the bumping action;
+    # Q[0, a] = 0 + 0.5 * (-10 + 0 - 0) = -5.  Profiles: Q[0] = (-5 at a, 0), Q[1] = (-4 at a, 0):
+    # mean squared difference (1/2) * ((-5 + 4)^2 + 0) = 0.5.
+    ep = ((0, 0), [((3, 0), -10, NO, True, True)])
+    return agent_for([ep], rho=rho, merge_every=merge_every)
+
+
+def test_mutual_pair_with_small_difference_merges_into_the_midpoint_and_mean():
+    agent, env = _two_cell_agent(rho=0.6)
+    agent.learn(total_episodes=1)
+    a = env.actions[0][0]
+    assert agent.codebook_.tolist() == [[1.5, 0]]
+    q = np.zeros(2)
+    q[a] = (-5 + -4) / 2
+    assert agent.q_.tolist() == [q.tolist()]
+    assert agent.history_[0]["merges"] == 1 and agent.history_[0]["n_cells"] == 1
+
+
+def test_no_merge_when_the_difference_is_at_least_rho():
+    agent, _ = _two_cell_agent(rho=0.5)  # msd = 0.5 is not < 0.5
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 2 and agent.history_[0]["merges"] == 0
+
+
+def test_merge_runs_every_merge_every_episodes():
+    # rho = 100 admits the pair whenever the pass runs; with merge_every = 2 it runs after episode 2 only.
+    agent, _ = _two_cell_agent(rho=100.0, merge_every=2)
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 2
+    agent.learn(total_episodes=1)
+    assert agent.history_[1]["merges"] == 1
+
+
+def test_no_merge_when_not_mutual():
+    # Vectors 0 (0,0), 1 (2,0), 2 (3,0): 0's nearest is 1 but 1's is 2. Identical profiles:
+    # only (1, 2) merges.
+    q = np.zeros((3, 2))
+    assert similar_pairs(np.array([[1, 2]]), q, 0.1).tolist() == [[1, 2]]
+    from avq.quantizer import Codebook
+    cb = Codebook(2)
+    for p in [(0, 0), (2, 0), (3, 0)]:
+        cb.append(np.array(p, float))
+    assert similar_pairs(cb.mutual_nearest_pairs(), q, 0.1).tolist() == [[1, 2]]
+
+
+def test_similar_pairs_uses_the_mean_square_difference():
+    q = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 6.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.3]])
+    pairs = np.array([[0, 1], [2, 3]])
+    # msd(0, 1) = 9 / 3 = 3; msd(2, 3) = 0.09 / 3 = 0.03
+    assert similar_pairs(pairs, q, 3.0).tolist() == [[2, 3]]
+    assert similar_pairs(pairs, q, 3.01).tolist() == [[0, 1], [2, 3]]
+
+
+def test_merged_values_average_the_pair_and_keep_the_rest():
+    q = np.array([[1.0, 2.0], [9.0, 9.0], [3.0, 6.0]])
+    out = merged_values(q, np.array([0, 1, 0]), 2)
+    assert out.tolist() == [[2.0, 4.0], [9.0, 9.0]]
+
+
+# -- SPEC §2, §5: acting and learning ---------------------------------------------------------
+
+def test_two_transition_episode_by_hand():
+    # alpha 0.5, lambda 0.7, gamma 0.9, chi -5, d_min 1.
+    # T1 from cell 0 with action a0: (0.5, 0) r -1, then a bump at (3, 0) r -10.
+    #    R = -1 + 0.9 * -10 = -10, k = 2. (3, 0) is 3 from y_0: appended as cell 1, Q[1] = [0, 0],
+    #    Q[1, a0] = -5. a1 = the other action. delta = -10 + 0.81 * 0 - 0 = -10.
+    #    E[0, a0] = 1; Q[0, a0] = -5; E *= 0.81 * 0.7 = 0.567.
+    # T2 from cell 1 with a1: (4, 0) r +10, terminal. delta = 10 - 0 = 10. E[1, a1] = 1.
+    #    Q[1, a1] = 5; Q[0, a0] = -5 + 0.5 * 10 * 0.567 = -2.165.
+    ep = ((0, 0), [((0.5, 0), -1, NO, NO, NO), ((3, 0), -10, NO, NO, True), ((4, 0), 10, True, NO, NO)])
+    agent, env = agent_for([ep], gamma=0.9, chi=-5.0)
+    agent.learn(total_episodes=1)
+    a0, a0_again, a1 = env.actions[0]
+    assert a0_again == a0 and a1 == 1 - a0
+    q = np.zeros((2, 2))
+    q[0, a0] = -5 + 0.5 * 10 * (0.9 ** 2 * 0.7)
+    q[1, a0] = -5.0
+    q[1, a1] = 5.0
+    assert np.allclose(agent.q_, q, rtol=0, atol=1e-12)
+    assert q[0, a0] == pytest.approx(-2.165)
+    assert agent.history_[0]["decisions"] == 2
+
+
+def test_truncation_bootstraps_and_termination_does_not():
+    # q_init 2. One step r -1. Truncated: delta = -1 + 2 - 2 = -1 -> Q = 1.5.
+    # Terminated: delta = -1 - 2 = -3 -> Q = 0.5.
+    for terminated, expected in ((False, 1.5), (True, 0.5)):
+        ep = ((0, 0), [((0.3, 0), -1, terminated, not terminated, NO)])
+        agent, env = agent_for([ep], q_init=2.0)
+        agent.learn(total_episodes=1)
+        a = env.actions[0][0]
+        assert agent.q_[0, a] == expected
+        assert agent.q_[0, 1 - a] == 2.0
+
+
+def test_traces_are_cleared_at_every_episode_start():
+    # Episode 1 ends with E[0, a] = 0.7 (terminal update). Episode 2 is a single terminal step with the
+    # other action forced by values: only that entry may change.
+    ep = ((0, 0), [((0.1, 0), 10, True, NO, NO)])
+    agent, env = agent_for([ep])
+    agent.learn(total_episodes=1)
+    a = env.actions[0][0]
+    assert agent.q_[0, a] == 5.0
+    agent.learn(total_episodes=1)
+    # Greedy picks a again (5 > 0): delta = 10 - 5 = 5, Q = 7.5; a stale trace would have added more.
+    assert env.actions[1][0] == a and agent.q_[0, a] == 7.5
+
+
+def test_sarsa_lambda_update_replacing_and_accumulating():
+    q = np.zeros((2, 2))
+    e = np.array([[0.5, 0.0], [0.0, 0.2]])
+    sarsa_lambda_update(q, e, 0, 0, delta=2.0, alpha=0.5, trace_decay=0.5, replacing=True, n_rows=2)
+    assert q.tolist() == [[1.0, 0.0], [0.0, 0.2]] and e.tolist() == [[0.5, 0.0], [0.0, 0.1]]
+    q = np.zeros((2, 2))
+    e = np.array([[0.5, 0.0], [0.0, 0.2]])
+    sarsa_lambda_update(q, e, 0, 0, delta=2.0, alpha=0.5, trace_decay=0.5, replacing=False, n_rows=2)
+    assert q.tolist() == [[1.5, 0.0], [0.0, 0.2]] and e.tolist() == [[0.75, 0.0], [0.0, 0.1]]
+
+
+def test_td_error():
+    assert sarsa_td_error(q_tm1=1.0, r_t=-2.0, discount_t=0.5, q_t=4.0, terminal=False) == -1.0
+    assert sarsa_td_error(q_tm1=1.0, r_t=-2.0, discount_t=0.5, q_t=4.0, terminal=True) == -3.0
+
+
+def test_epsilon_greedy_breaks_ties_at_random_and_explores():
+    rng = np.random.default_rng(0)
+    q = np.array([1.0, 3.0, 3.0, 0.0])
+    picks = [epsilon_greedy(q, 0.0, rng) for _ in range(400)]
+    assert set(picks) == {1, 2} and 150 < picks.count(1) < 250
+    picks = [epsilon_greedy(q, 1.0, rng) for _ in range(400)]
+    assert set(picks) == {0, 1, 2, 3}
+    assert all(epsilon_greedy(np.array([0.0, 1.0]), 0.0, rng) == 1 for _ in range(20))
+
+
+def test_a_decision_is_repeated_until_the_cell_changes():
+    # Cells at (0,0) and (10,0) exist after episode 1. Episode 2: three steps inside cell 0, then into
+    # cell 1, one more step there and the goal: exactly two decisions.
+    ep1 = ((0, 0), [((10, 0), -10, NO, True, True)])
+    ep2 = ((0, 0), [((1, 0), -1, NO, NO, NO), ((2, 0), -1, NO, NO, NO), ((3, 0), -1, NO, NO, NO),
+                    ((6, 0), -1, NO, NO, NO), ((7, 0), -1, NO, NO, NO), ((8, 0), 10, True, NO, NO)])
+    agent, env = agent_for([ep1, ep2], epsilon=0.3, seed=3)
+    agent.learn(total_episodes=2)
+    acts = env.actions[1]
+    assert len(set(acts[:4])) == 1 and len(set(acts[4:])) == 1
+    assert agent.history_[1]["decisions"] == 2
