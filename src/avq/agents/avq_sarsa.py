@@ -50,6 +50,11 @@ class AVQSarsa(BaseAgent):
         seed: Seed of every random choice the agent makes and of the environment's
             first reset.
 
+    The defaults are those of ``make_agent("avq-paper")`` except the metric: the
+    class scales by the observation bounds (so ``d_min = 0.05`` is 5% of each
+    range), while ``avq-paper`` uses the paper's plain Euclidean distance
+    (``scale=1``, ``d_min=1`` grid unit).
+
     Attributes:
         codebook_: ``(p, n)`` codebook vectors.
         q_: ``(p, m)`` action values of the cells.
@@ -66,14 +71,14 @@ class AVQSarsa(BaseAgent):
         self,
         env: gym.Env | str,
         *,
-        alpha: float = 0.2,
+        alpha: float = 0.5,
         lam: float = 0.7,
         gamma: float = 1.0,
-        epsilon: float = 0.1,
-        d_min: float = 1.0,
-        rho: float = 1.0,
-        chi: float = -10.0,
-        q_init: float = 0.0,
+        epsilon: float = 0.05,
+        d_min: float = 0.05,
+        rho: float = 5.0,
+        chi: float = -50.0,
+        q_init: float = 5.0,
         traces: str = "replacing",
         merge_every: int = 1,
         value_trigger: float | None = None,

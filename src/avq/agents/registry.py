@@ -2,7 +2,8 @@
 
 Each entry is a class and the defaults that define the name. The defaults of
 ``avq-paper`` were chosen by the sweep in ``scripts/sweep_paper_defaults.py``
-(see docs/RESULTS.md, "How the defaults were chosen").
+(see docs/RESULTS.md, "How the defaults were chosen"; the raw results are in
+docs/data/sweep-paper-defaults.csv).
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
     # (scale 1, d_min in the environment's units), merge after every trial.
     "avq-paper": (
         AVQSarsa,
-        dict(alpha=0.2, lam=0.7, gamma=1.0, epsilon=0.1, d_min=1.0, rho=1.0, chi=-10.0,
-             q_init=0.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0),
+        dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.0, rho=5.0, chi=-50.0,
+             q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0),
     ),
     "tabular": (
         TabularSarsa,

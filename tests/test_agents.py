@@ -1,0 +1,199 @@
+"""The agents' API: parameters, seeding, additive learn, predict, records, saving; tabular Sarsa(λ)."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+
+import avq
+from avq import AVQSarsa, TabularSarsa, evaluate_maze, make_agent
+
+
+def maze(layout="lau2002", **kw):
+    return gym.make("avq/GridMaze-v0", layout=layout, **kw)
+
+
+def state_of(agent):
+    return (agent.codebook_ if hasattr(agent, "codebook_") else agent.states_), agent.q_
+
+
+@pytest.mark.parametrize("name", ["avq-paper", "tabular"])
+def test_same_seed_same_result_and_different_seed_differs(name):
+    a = make_agent(name, maze(), seed=7).learn(total_episodes=60)
+    b = make_agent(name, maze(), seed=7).learn(total_episodes=60)
+    c = make_agent(name, maze(), seed=8).learn(total_episodes=60)
+    for x, y in zip(state_of(a), state_of(b)):
+        assert np.array_equal(x, y)
+    assert a.episode_history()["steps"].tolist() == b.episode_history()["steps"].tolist()
+    assert a.episode_history()["steps"].tolist() != c.episode_history()["steps"].tolist()
+
+
+@pytest.mark.parametrize("name", ["avq-paper", "tabular"])
+@pytest.mark.parametrize("unit", ["total_episodes", "total_timesteps"])
+def test_learn_is_additive(name, unit):
+    n = 50 if unit == "total_episodes" else 2345
+    whole = make_agent(name, maze(), seed=3).learn(**{unit: 2 * n + 1})
+    parts = make_agent(name, maze(), seed=3)
+    parts.learn(**{unit: n}).learn(**{unit: 1}).learn(**{unit: n})
+    for x, y in zip(state_of(whole), state_of(parts)):
+        assert np.array_equal(x, y)
+    assert whole.num_timesteps == parts.num_timesteps and whole.num_episodes == parts.num_episodes
+
+
+def test_timestep_budget_is_exact_and_can_stop_inside_an_episode():
+    agent = make_agent("avq-paper", maze(), seed=0).learn(total_timesteps=150)
+    assert agent.num_timesteps == 150
+    assert sum(agent.episode_history()["steps"]) <= 150
+
+
+def test_episode_records_and_callback_can_stop():
+    seen = []
+
+    def cb(agent, record):
+        seen.append(record)
+        return len(seen) < 5
+
+    agent = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=100, callback=cb)
+    assert agent.num_episodes == 5 and len(seen) == 5
+    h = agent.episode_history()
+    assert set(h) >= {"episode", "steps", "return", "n_cells", "appends", "merges", "decisions", "wall_s"}
+    assert h["episode"].tolist() == [1, 2, 3, 4, 5]
+    assert h["n_cells"][-1] == agent.n_cells
+    assert h["steps"].sum() == agent.num_timesteps
+    assert all(1 <= s <= 100 for s in h["steps"])
+
+
+def test_predict_single_and_batch_and_queries_do_not_change_state():
+    agent = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=30)
+    before = state_of(agent)
+    rng_state = agent._rng.bit_generator.state
+    obs = np.array([[1, 1], [12, 8], [5, 9]], dtype=np.float32)
+    batch, none = agent.predict(obs)
+    assert none is None and batch.shape == (3,)
+    singles = [agent.predict(o)[0] for o in obs]
+    assert batch.tolist() == singles and all(isinstance(a, int) for a in singles)
+    cells = agent.cells(obs)
+    assert batch.tolist() == agent.q_[cells].argmax(axis=1).tolist()
+    agent.predict(obs, deterministic=False)
+    for x, y in zip(before, state_of(agent)):
+        assert np.array_equal(x, y)
+    assert agent._rng.bit_generator.state == rng_state
+    with pytest.raises(ValueError, match="shape"):
+        agent.predict(np.zeros(3))
+
+
+def test_predict_before_learn_is_a_clear_error():
+    with pytest.raises(RuntimeError, match="learn"):
+        make_agent("avq-paper", maze()).predict(np.zeros(2))
+
+
+@pytest.mark.parametrize("name", ["avq-paper", "tabular"])
+def test_save_load_round_trip_is_exact(tmp_path, name):
+    agent = make_agent(name, maze(), seed=1).learn(total_episodes=40)
+    path = agent.save(tmp_path / "model")
+    assert path.suffix == ".zip"
+    loaded = avq.load(path, env=maze())
+    for x, y in zip(state_of(agent), state_of(loaded)):
+        assert np.array_equal(x, y)
+    assert loaded.get_params() == agent.get_params()
+    obs = maze().unwrapped.layout.free_positions().astype(float)
+    assert np.array_equal(agent.predict(obs)[0], loaded.predict(obs)[0])
+    assert type(loaded).load(path).num_timesteps == agent.num_timesteps  # env made from the stored id
+
+
+def test_load_refuses_foreign_and_mismatched_files(tmp_path):
+    bad = tmp_path / "bad.zip"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="bad.zip"):
+        avq.load(bad)
+    agent = make_agent("avq-paper", maze(), seed=1).learn(total_episodes=3)
+    path = agent.save(tmp_path / "m.zip")
+    with pytest.raises(ValueError, match="observation_space"):
+        avq.load(path, env=maze(layout="open5"))
+    with pytest.raises(ValueError, match="not a TabularSarsa"):
+        TabularSarsa.load(path)
+
+
+@pytest.mark.parametrize(
+    "param,value,match",
+    [("alpha", 0.0, r"alpha must be in \(0.0, 1.0\]"), ("alpha", 1.5, "alpha"), ("lam", -0.1, "lam"),
+     ("gamma", 1.1, "gamma"), ("epsilon", 2, "epsilon"), ("d_min", -1, "d_min"), ("rho", -0.5, "rho"),
+     ("chi", 1.0, "chi"), ("chi", 0.0, "chi"), ("q_init", float("nan"), "q_init"),
+     ("traces", "dutch", "traces"), ("merge_every", -1, "merge_every"), ("merge_every", 1.5, "merge_every"),
+     ("value_trigger", 0.0, "value_trigger"), ("seed", -3, "seed"), ("alpha", "0.1", "alpha"),
+     ("max_cells", 0, "max_cells"), ("scale", [1.0, 0.0], "scale")],
+)
+def test_bad_parameters_name_the_parameter(param, value, match):
+    with pytest.raises(ValueError, match=match):
+        AVQSarsa(maze(), **{param: value})
+
+
+def test_get_params_reads_the_signature():
+    agent = make_agent("avq-paper", maze(), seed=4, alpha=0.3)
+    p = agent.get_params()
+    assert p["alpha"] == 0.3 and p["seed"] == 4 and p["lam"] == 0.7
+    assert set(p) == set(AVQSarsa._param_names())
+
+
+def test_make_agent_errors():
+    with pytest.raises(ValueError, match="unknown agent 'nope'"):
+        make_agent("nope", maze())
+    with pytest.raises(ValueError, match="unknown parameter 'alpah'"):
+        make_agent("avq-paper", maze(), alpah=0.1)
+
+
+def test_avq_refuses_a_discrete_observation_space_and_points_to_tabular():
+    with pytest.raises(ValueError, match="tabular"):
+        AVQSarsa(gym.make("FrozenLake-v1"))
+
+
+def test_avq_scale_from_bounds_and_unbounded_dimension_error():
+    agent = AVQSarsa(maze(), seed=0)
+    assert agent._scale.tolist() == [13.0, 11.0]
+    with pytest.raises(ValueError, match="dimension 1"):
+        AVQSarsa(gym.make("CartPole-v1"))
+    AVQSarsa(gym.make("CartPole-v1"), scale=[1.0, 1.0, 1.0, 1.0])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_tabular_finds_the_shortest_path_on_a_small_maze(seed):
+    layout = ["S...#", ".##.#", "....G", ".#...", "....."]
+    # Enough exploration (epsilon 0.3) that no action is left untried; gamma 0.95 rewards short paths.
+    agent = TabularSarsa(maze(layout), alpha=0.2, gamma=0.95, epsilon=0.3, seed=seed).learn(total_episodes=2000)
+    res = evaluate_maze(agent, maze(layout))
+    assert res["success_rate"] == 1.0
+    assert res["path_ratio"] == 1.0
+    assert all(o["steps"] == o["shortest"] for o in res["outcomes"])
+
+
+def test_tabular_on_a_discrete_observation_space():
+    env = gym.make("FrozenLake-v1", is_slippery=False)
+    agent = TabularSarsa(env, alpha=0.5, gamma=0.9, epsilon=0.2, seed=0).learn(total_episodes=300)
+    assert agent.q_.shape[1] == 4
+    obs, _ = env.reset(seed=0)
+    steps, done = 0, False
+    while not done and steps < 20:
+        a, _ = agent.predict(obs)
+        obs, r, done, trunc, _ = env.step(a)
+        steps += 1
+    assert r == 1.0 and steps == 6
+
+
+def test_evaluate_maze_by_hand_on_a_corridor():
+    # In the corridor #S...G# every position's best action must be East once learned.
+    env = maze("corridor")
+    agent = TabularSarsa(env, seed=0).learn(total_episodes=200)
+    res = evaluate_maze(agent, maze("corridor"))
+    assert [o["start"] for o in res["outcomes"]] == [(1, 1), (2, 1), (3, 1), (4, 1)]
+    assert [o["shortest"] for o in res["outcomes"]] == [4, 3, 2, 1]
+    assert res["success_rate"] == 1.0 and res["path_ratio"] == 1.0
+
+
+def test_evaluate_maze_counts_failures_and_path_ratio():
+    class AlwaysWest:
+        def predict(self, obs, deterministic=True):
+            return 3, None
+
+    res = evaluate_maze(AlwaysWest(), maze("corridor"))
+    assert res["success_rate"] == 0.0 and res["path_ratio"] is None
+    assert all(o["steps"] == 100 for o in res["outcomes"])
