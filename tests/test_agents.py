@@ -3,7 +3,6 @@
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium import spaces
 
 import avq
 from avq import AVQSarsa, TabularSarsa, evaluate_maze, make_agent

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range
+from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range, check_sarsa_params
 from avq.quantizer import Codebook
 from avq.rules import APPEND, CHI, collision_rule, may_append, merged_values, similar_pairs
 
@@ -86,17 +86,10 @@ class AVQSarsa(BaseAgent):
         max_cells: int = 10_000,
         seed: int | None = None,
     ) -> None:
-        self.alpha = check_range("alpha", alpha, 0.0, 1.0, low_open=True)
-        self.lam = check_range("lam", lam, 0.0, 1.0)
-        self.gamma = check_range("gamma", gamma, 0.0, 1.0)
-        self.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
+        check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.d_min = check_range("d_min", d_min, 0.0, np.inf, high_open=True)
         self.rho = check_range("rho", rho, 0.0, np.inf, high_open=True)
         self.chi = check_range("chi", chi, -np.inf, 0.0, low_open=True, high_open=True)
-        self.q_init = check_range("q_init", q_init, -np.inf, np.inf, low_open=True, high_open=True)
-        if traces not in ("replacing", "accumulating"):
-            raise ValueError(f"traces must be 'replacing' or 'accumulating', not {traces!r}")
-        self.traces = traces
         self.merge_every = check_int("merge_every", merge_every, 0)
         self.value_trigger = (
             None if value_trigger is None

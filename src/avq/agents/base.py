@@ -71,6 +71,18 @@ def check_int(name: str, value: Any, low: int, *, allow_none: bool = False) -> i
     return int(value)
 
 
+def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: Any, q_init: Any, traces: Any) -> None:
+    """Check and store the hyper-parameters every Sarsa(λ) agent shares."""
+    agent.alpha = check_range("alpha", alpha, 0.0, 1.0, low_open=True)
+    agent.lam = check_range("lam", lam, 0.0, 1.0)
+    agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
+    agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
+    agent.q_init = check_range("q_init", q_init, -np.inf, np.inf, low_open=True, high_open=True)
+    if traces not in ("replacing", "accumulating"):
+        raise ValueError(f"traces must be 'replacing' or 'accumulating', not {traces!r}")
+    agent.traces = traces
+
+
 def _space_to_json(space: spaces.Space) -> dict[str, Any]:
     if isinstance(space, spaces.Discrete):
         return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}

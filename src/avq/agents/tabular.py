@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range
+from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params
 
 __all__ = ["TabularSarsa"]
 
@@ -51,14 +51,7 @@ class TabularSarsa(BaseAgent):
         max_states: int = 1_000_000,
         seed: int | None = None,
     ) -> None:
-        self.alpha = check_range("alpha", alpha, 0.0, 1.0, low_open=True)
-        self.lam = check_range("lam", lam, 0.0, 1.0)
-        self.gamma = check_range("gamma", gamma, 0.0, 1.0)
-        self.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
-        self.q_init = check_range("q_init", q_init, -np.inf, np.inf, low_open=True, high_open=True)
-        if traces not in ("replacing", "accumulating"):
-            raise ValueError(f"traces must be 'replacing' or 'accumulating', not {traces!r}")
-        self.traces = traces
+        check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.max_states = check_int("max_states", max_states, 1)
         super().__init__(env, seed)
 
