@@ -273,3 +273,39 @@ def test_a_decision_is_repeated_until_the_cell_changes():
     acts = env.actions[1]
     assert len(set(acts[:4])) == 1 and len(set(acts[4:])) == 1
     assert agent.history_[1]["decisions"] == 2
+
+
+# -- reward-jump trigger (for tasks without collisions) ----------------------------------------
+
+def test_reward_jump_appends_the_new_observation_inheriting_the_current_cell():
+    # Steps: (0.5, 0) r -1, (3, 0) r -7 (a jump of 6 >= 5, no collision), then terminal at (3.2, 0) r 0.
+    # The jump appends (3, 0) as cell 1 with Q[1] = Q[0] = [0, 0]: the cell changes, so transition 1
+    # (R = -1 - 7 = -8, a' = random tie in cell 1) ends there: delta = -8 + 0 - 0, Q[0, a0] = -4.
+    # Transition 2 from cell 1: terminal, R = 0: delta = 0 - 0 = 0.
+    ep = ((0, 0), [((0.5, 0), -1, NO, NO, NO), ((3, 0), -7, NO, NO, NO), ((3.2, 0), 0, True, NO, NO)])
+    agent, env = agent_for([ep], reward_trigger=5.0)
+    agent.learn(total_episodes=1)
+    a0 = env.actions[0][0]
+    assert env.actions[0][1] == a0
+    assert agent.codebook_.tolist() == [[0, 0], [3, 0]]
+    q = np.zeros((2, 2))
+    q[0, a0] = -4.0
+    assert agent.q_.tolist() == q.tolist()
+    assert agent.history_[0]["decisions"] == 2
+
+
+def test_reward_jump_below_threshold_within_d_min_or_on_a_collision_does_not_append():
+    base = [((0.5, 0), -1, NO, NO, NO), ((3, 0), -7, NO, NO, NO), ((3.2, 0), -7, True, NO, NO)]
+    for kw in (dict(reward_trigger=6.5), dict(reward_trigger=5.0, d_min=3.5)):
+        agent, _ = agent_for([((0, 0), base)], **kw)
+        agent.learn(total_episodes=1)
+        assert agent.n_cells == 1, kw
+    # The first step of an episode has no previous reward to compare with.
+    agent, _ = agent_for([((0, 0), [((3, 0), -50, NO, NO, NO), ((3.1, 0), 0, True, NO, NO)])], reward_trigger=1.0)
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 1
+    # A collision is handled by the collision rule alone (chi within d_min), not by the reward trigger.
+    agent, _ = agent_for([((0, 0), [((0.5, 0), -1, NO, NO, NO), ((0.6, 0), -10, NO, True, True)])],
+                         reward_trigger=1.0, d_min=1.0)
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 1

@@ -9,7 +9,7 @@ import numpy as np
 
 from avq.agents.base import BaseAgent
 
-__all__ = ["evaluate_maze"]
+__all__ = ["evaluate_maze", "evaluate_policy", "success_rule", "SUCCESS_RULES"]
 
 
 def _step_limit(env: gym.Env, default: int = 100) -> int:
@@ -29,9 +29,11 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
 
     Args:
         agent: A trained agent.
-        env: A maze environment (``avq/GridMaze-v0``, possibly wrapped). Use one that
-            is not being trained on: it is reset for every start.
-        max_steps: Step limit of each run; default the env's ``max_episode_steps`` or 100.
+        env: A maze environment (``avq/GridMaze-v0`` or ``avq/RobotMaze-v0``, possibly
+            wrapped). Use one that is not being trained on: it is reset for every start.
+            On RobotMaze the starts are the centres of the free non-goal squares and the
+            shortest path is the exact minimum number of moves.
+        max_steps: Step limit of each run; default the env's step limit (100 on GridMaze).
 
     Returns:
         ``success_rate``: fraction of starts from which the goal is reached within the
@@ -42,11 +44,21 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
     base = env.unwrapped
     layout = getattr(base, "layout", None)
     if layout is None or not hasattr(layout, "distances"):
-        raise ValueError("evaluate_maze needs a maze environment (avq/GridMaze-v0); this one has no layout")
-    limit = int(max_steps) if max_steps is not None else _step_limit(env)
+        raise ValueError(
+            "evaluate_maze needs a maze environment (avq/GridMaze-v0 or avq/RobotMaze-v0); this one has no layout"
+        )
+    if hasattr(base, "start_positions"):  # continuous maze: square centres, exact lattice distances
+        starts = [tuple(float(v) for v in p) for p in base.start_positions()]
+        shortest = [int(base.shortest_steps(x, y)) for x, y in starts]
+        default_limit = int(base.max_steps)
+    else:
+        starts = [(int(x), int(y)) for x, y in layout.free_positions(include_goal=False)]
+        shortest = [int(layout.distances[y, x]) for x, y in starts]
+        default_limit = _step_limit(env)
+    limit = int(max_steps) if max_steps is not None else default_limit
     outcomes = []
-    for x, y in layout.free_positions(include_goal=False):
-        obs, _ = base.reset(options={"start": (int(x), int(y))})
+    for start, best in zip(starts, shortest):
+        obs, _ = base.reset(options={"start": start})
         steps, success = 0, False
         while steps < limit:
             action, _ = agent.predict(obs, deterministic=True)
@@ -55,10 +67,83 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
             if terminated:
                 success = True
                 break
-        outcomes.append(
-            {"start": (int(x), int(y)), "success": success, "steps": steps,
-             "shortest": int(layout.distances[y, x])}
-        )
+        outcomes.append({"start": start, "success": success, "steps": steps, "shortest": best})
     wins = [o for o in outcomes if o["success"]]
     ratio = float(np.mean([o["steps"] / o["shortest"] for o in wins])) if wins else None
     return {"success_rate": len(wins) / len(outcomes), "path_ratio": ratio, "outcomes": outcomes}
+
+
+#: How success is read from an episode's end, for tasks that define it.
+SUCCESS_RULES: dict[str, str] = {
+    "avq/GridMaze-v0": "terminated",
+    "avq/RobotMaze-v0": "terminated",
+    "MountainCar-v0": "terminated",
+    "MountainCarContinuous-v0": "terminated",
+    "Acrobot-v1": "terminated",
+    "CartPole-v1": "truncated",
+    "CartPole-v0": "truncated",
+}
+
+
+def success_rule(env: gym.Env) -> str | None:
+    """``"terminated"``, ``"truncated"`` or None: what counts as success on this task."""
+    spec = getattr(env, "spec", None)
+    return SUCCESS_RULES.get(getattr(spec, "id", None) or "")
+
+
+def evaluate_policy(
+    agent: BaseAgent,
+    env: gym.Env,
+    n_episodes: int = 10,
+    seed: int | None = 0,
+    deterministic: bool = True,
+    max_steps: int = 100_000,
+) -> dict[str, Any]:
+    """Run ``n_episodes`` with the agent's policy and summarize the returns.
+
+    The environment is reset with ``seed`` once, so the same seed gives the same
+    start states. ``success`` is reported where the task defines it (reaching the
+    goal; for CartPole, lasting until the time limit; or ``info["is_success"]``).
+    An episode longer than ``max_steps`` is cut there and counts as truncated.
+
+    Returns:
+        ``mean_return``, ``std_return``, ``mean_steps``, ``success_rate`` (or None),
+        and the per-episode ``returns`` and ``steps``.
+    """
+    if int(n_episodes) < 1:
+        raise ValueError(f"n_episodes must be >= 1, not {n_episodes}")
+    rule = success_rule(env)
+    returns, lengths, successes = [], [], []
+    obs, _ = env.reset(seed=seed)
+    for ep in range(int(n_episodes)):
+        if ep:
+            obs, _ = env.reset()
+        total, steps, ok = 0.0, 0, None
+        while True:
+            action, _ = agent.predict(obs, deterministic=deterministic)
+            obs, r, terminated, truncated, info = env.step(action)
+            total += float(r)
+            steps += 1
+            if steps >= max_steps and not terminated:
+                truncated = True
+            if terminated or truncated:
+                if "is_success" in info:
+                    ok = bool(info["is_success"])
+                elif rule == "terminated":
+                    ok = bool(terminated)
+                elif rule == "truncated":
+                    ok = bool(truncated and not terminated)
+                break
+        returns.append(total)
+        lengths.append(steps)
+        successes.append(ok)
+    rate = None if any(s is None for s in successes) else float(np.mean(successes))
+    return {
+        "episodes": int(n_episodes),
+        "mean_return": float(np.mean(returns)),
+        "std_return": float(np.std(returns)),
+        "mean_steps": float(np.mean(lengths)),
+        "success_rate": rate,
+        "returns": returns,
+        "steps": lengths,
+    }

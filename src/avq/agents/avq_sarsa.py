@@ -43,6 +43,10 @@ class AVQSarsa(BaseAgent):
         merge_every: Run a merge pass after every this many episodes; 0 never merges.
         value_trigger: TD-error magnitude ``theta`` that appends the transition's end
             state (SPEC §3, optional trigger); None turns it off.
+        reward_trigger: On a step without a collision, a reward that differs from the
+            previous step's (same episode) by at least this much appends the new
+            observation as a cell inheriting the current cell's profile, which ends the
+            aggregate transition; None turns it off. For tasks without collisions.
         scale: Per-dimension scale of the metric: a number or a sequence; None takes
             ``high - low`` of the observation space (every bound must be finite).
         max_cells: Upper bound on the codebook size; at the bound, appends are refused
@@ -82,6 +86,7 @@ class AVQSarsa(BaseAgent):
         traces: str = "replacing",
         merge_every: int = 1,
         value_trigger: float | None = None,
+        reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
         max_cells: int = 10_000,
         seed: int | None = None,
@@ -94,6 +99,10 @@ class AVQSarsa(BaseAgent):
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
+        )
+        self.reward_trigger = (
+            None if reward_trigger is None
+            else check_range("reward_trigger", reward_trigger, 0.0, np.inf, low_open=True, high_open=True)
         )
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.scale = scale
@@ -259,6 +268,11 @@ class AVQSarsa(BaseAgent):
             ep.episode_return += r
             collision = bool(info.get("collision", False))
             j, dist_j = cb.nearest(x)
+            if self.reward_trigger is not None:
+                jump = ep.steps + n > 1 and abs(r - ep.prev_reward) >= self.reward_trigger
+                ep.prev_reward = r
+                if jump and not collision and self._may_append(dist_j):
+                    j = self._append(x, parent=i)
             if j == i and not (collision or terminated or truncated):
                 continue
             # The aggregate transition (i, a) -> j ends here.
@@ -333,7 +347,8 @@ class AVQSarsa(BaseAgent):
 class _Episode:
     """The agent's position inside the current episode, kept between ``_advance`` calls."""
 
-    __slots__ = ("cell", "action", "ret", "disc", "steps", "episode_return", "appends", "refused", "decisions")
+    __slots__ = ("cell", "action", "ret", "disc", "steps", "episode_return", "appends", "refused", "decisions",
+                 "prev_reward")
 
     def __init__(self) -> None:
         self.reset()
@@ -348,3 +363,4 @@ class _Episode:
         self.appends = 0
         self.refused = 0
         self.decisions = 0
+        self.prev_reward = 0.0  # reward of the previous primitive step (reward trigger)
