@@ -301,7 +301,7 @@ def test_reward_jump_below_threshold_within_d_min_or_on_a_collision_does_not_app
         agent.learn(total_episodes=1)
         assert agent.n_cells == 1, kw
     # The first step of an episode has no previous reward to compare with.
-    agent, _ = agent_for([((0, 0), [((3, 0), -50, NO, NO, NO), ((3.1, 0), 0, True, NO, NO)])], reward_trigger=1.0)
+    agent, _ = agent_for([((0, 0), [((3, 0), -50, NO, NO, NO), ((3.1, 0), -50, True, NO, NO)])], reward_trigger=1.0)
     agent.learn(total_episodes=1)
     assert agent.n_cells == 1
     # A collision is handled by the collision rule alone (chi within d_min), not by the reward trigger.
