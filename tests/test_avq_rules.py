@@ -309,3 +309,14 @@ def test_reward_jump_below_threshold_within_d_min_or_on_a_collision_does_not_app
                          reward_trigger=1.0, d_min=1.0)
     agent.learn(total_episodes=1)
     assert agent.n_cells == 1
+
+
+def test_merge_age_keeps_young_cells_apart():
+    # The two-cell situation of the merge tests (msd 0.5 < rho 0.6), with merge_age 1: cell 1 was created
+    # in episode 1, so after episode 1 it is 0 episodes old and may not merge.
+    agent, _ = _two_cell_agent(rho=100.0)
+    agent.merge_age = 1
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 2 and agent.history_[0]["merges"] == 0
+    agent.learn(total_episodes=1)  # now 1 complete episode old
+    assert agent.n_cells == 1 and agent.history_[1]["merges"] == 1

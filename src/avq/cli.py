@@ -6,6 +6,7 @@ Every user mistake ends with a one-line message on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Sequence
 
@@ -58,6 +59,99 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+_CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "timesteps", "out", "avq_version"}
+
+
+def _key_values(pairs: list[str], flag: str) -> dict:
+    """``key=value`` pairs, values read as YAML scalars (``0.5``, ``true``, ``[1, 2]``)."""
+    import yaml
+
+    out = {}
+    for item in pairs or []:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise UsageError(f"{flag} expects key=value, not {item!r}")
+        try:
+            out[key.strip()] = yaml.safe_load(text) if text.strip() else None
+        except yaml.YAMLError:
+            raise UsageError(f"{flag} {key}: cannot read the value {text!r}") from None
+    return out
+
+
+def _load_config(path: str) -> dict:
+    import yaml
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            config = yaml.safe_load(f)
+    except OSError as exc:
+        raise UsageError(f"cannot read config {path}: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        raise UsageError(f"config {path} is not valid YAML: {str(exc).splitlines()[0]}") from None
+    if config is None:
+        config = {}
+    if not isinstance(config, dict):
+        raise UsageError(f"config {path} must be a mapping of keys to values")
+    unknown = sorted(set(config) - _CONFIG_KEYS)
+    if unknown:
+        raise UsageError(f"config {path}: unknown key {unknown[0]!r}; known keys: {', '.join(sorted(_CONFIG_KEYS))}")
+    for key in ("params", "env_kwargs"):
+        if config.get(key) is not None and not isinstance(config[key], dict):
+            raise UsageError(f"config {path}: {key!r} must be a mapping")
+    return config
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from avq.experiments import train
+
+    config = _load_config(args.config) if args.config else {}
+    env_id = args.env or config.get("env")
+    if not env_id:
+        raise UsageError("--env is required (or 'env' in --config)")
+    agent = args.agent or config.get("agent") or "avq"
+    params = {**(config.get("params") or {}), **_key_values(args.set, "--set")}
+    env_kwargs = {**(config.get("env_kwargs") or {}), **_key_values(args.env_kwargs, "--env-kwargs")}
+    episodes, timesteps = args.episodes, args.timesteps
+    if episodes is None and timesteps is None:
+        episodes, timesteps = config.get("episodes"), config.get("timesteps")
+        if episodes is None and timesteps is None:
+            episodes = 500
+    seed = args.seed if args.seed is not None else config.get("seed", 0)
+    summary = train(
+        env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
+        env_kwargs=env_kwargs, out=args.out or config.get("out"), progress=not args.no_progress,
+    )
+    print(
+        f"{summary['agent']} on {summary['env']} (seed {summary['seed']}): {summary['episodes']} episodes, "
+        f"{summary['env_steps']} env steps, {summary['n_cells']} cells, mean return of the last 10% "
+        f"{summary['final_return_mean']:.2f}, {summary['wall_s']:.1f} s -> {summary['out']}"
+    )
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    import json
+
+    from avq.experiments import evaluate_run
+
+    report = evaluate_run(args.run_dir, episodes=args.episodes, seed=args.seed)
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    line = (
+        f"{report['agent']} on {report['env']}: return {report['mean_return']:.2f} ± {report['std_return']:.2f} "
+        f"over {report['episodes']} episodes, {report['mean_steps']:.1f} steps, {report['n_cells']} cells"
+    )
+    if report["success_rate"] is not None:
+        line += f", success {report['success_rate']:.0%}"
+    print(line)
+    if "maze_success_rate" in report:
+        ratio = report["maze_path_ratio"]
+        print(f"greedy policy from every start: success {report['maze_success_rate']:.0%}, "
+              f"path ratio {'-' if ratio is None else f'{ratio:.2f}'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="avq", description="Reinforcement learning with adaptive vector quantization.")
     from avq import __version__
@@ -79,6 +173,32 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--jobs", type=_positive_int("--jobs"), default=None, help="parallel processes (default: cores)")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rep.set_defaults(func=_cmd_reproduce)
+
+    tr = sub.add_parser(
+        "train",
+        help="train one agent on any registered Gymnasium environment",
+        description="Train an agent and write config.yml, progress.csv, model.zip and summary.json into --out.",
+    )
+    tr.add_argument("--env", help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0")
+    tr.add_argument("--agent", help="agent name (default avq)")
+    budget = tr.add_mutually_exclusive_group()
+    budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes to train (default 500)")
+    budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="environment steps to train")
+    tr.add_argument("--seed", type=int, help="seed (default 0)")
+    tr.add_argument("--out", help="run directory (default runs/{env}__{agent}__{seed}__{time})")
+    tr.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter (repeatable)")
+    tr.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make (repeatable)")
+    tr.add_argument("--config", help="YAML file with env, env_kwargs, agent, params, seed, episodes|timesteps, out")
+    tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    tr.set_defaults(func=_cmd_train)
+
+    ev = sub.add_parser("evaluate", help="evaluate a trained run's greedy policy",
+                        description="Load DIR/model.zip and report the mean and spread of the return.")
+    ev.add_argument("run_dir", metavar="DIR", help="a directory written by 'avq train'")
+    ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
+    ev.add_argument("--seed", type=int, default=0, help="seed of the evaluation episodes (default 0)")
+    ev.add_argument("--json", action="store_true", help="print JSON")
+    ev.set_defaults(func=_cmd_evaluate)
     return parser
 
 
@@ -94,7 +214,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"avq: error: {exc}", file=sys.stderr)
         return 2
     except (ValueError, FileNotFoundError) as exc:
-        print(f"avq: error: {exc}", file=sys.stderr)
+        if os.environ.get("AVQ_DEBUG"):
+            raise
+        print(f"avq: error: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("avq: interrupted", file=sys.stderr)

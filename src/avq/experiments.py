@@ -17,7 +17,7 @@ from avq.agents.registry import AGENTS, make_agent
 from avq.envs.layouts import LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
 
-__all__ = ["ReproduceRun", "train_maze_run", "reproduce"]
+__all__ = ["ReproduceRun", "train_maze_run", "reproduce", "train", "evaluate_run", "make_env", "read_run_config"]
 
 
 @dataclass
@@ -190,3 +190,161 @@ def format_table(summary: dict[str, Any]) -> str:
             f"{np.mean(res['env_steps']):>10.0f} {np.mean(res['wall_s']):>8.2f}"
         )
     return "\n".join(lines)
+
+
+# -- single training runs (``avq train`` / ``avq evaluate``) -------------------------------------------
+
+PROGRESS_COLUMNS = ("episode", "steps", "return", "n_cells", "appends", "merges", "wall_s")
+
+
+def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
+    """``gymnasium.make`` with errors a user can act on (ValueError naming the id or argument)."""
+    import avq.envs  # noqa: F401  (registers avq's environments)
+
+    kwargs = dict(env_kwargs or {})
+    try:
+        return gym.make(env_id, **kwargs)
+    except gym.error.Error as exc:
+        raise ValueError(f"unknown environment {env_id!r} ({exc})") from None
+    except TypeError as exc:
+        raise ValueError(f"bad env-kwargs for {env_id!r}: {exc}") from None
+
+
+def default_run_dir(env_id: str, agent: str, seed: int | None) -> Path:
+    """``runs/{env}__{agent}__{seed}__{time}`` (CleanRL's naming)."""
+    env_part = env_id.replace("/", "-")
+    return Path("runs") / f"{env_part}__{agent}__{seed}__{int(time.time())}"
+
+
+class _ProgressWriter:
+    """Appends one CSV row per episode and flushes it, so a stopped run keeps its rows."""
+
+    def __init__(self, path: Path) -> None:
+        self._f = open(path, "w", newline="", encoding="utf-8")
+        self._f.write(",".join(PROGRESS_COLUMNS) + "\n")
+        self._f.flush()
+
+    def __call__(self, agent: Any, record: dict[str, Any]) -> None:
+        row = [record.get(k, "") for k in PROGRESS_COLUMNS]
+        self._f.write(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in row) + "\n")
+        self._f.flush()
+
+    def close(self) -> None:
+        self._f.close()
+
+
+def train(
+    env_id: str,
+    agent: str = "avq",
+    *,
+    episodes: int | None = None,
+    timesteps: int | None = None,
+    seed: int | None = 0,
+    params: dict[str, Any] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    out: str | os.PathLike | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Train one agent on one environment and write the run directory.
+
+    Writes ``config.yml`` (everything needed to rerun: ``avq train --config``),
+    ``progress.csv`` (one row per episode), ``model.zip`` and ``summary.json``.
+    Returns the summary.
+    """
+    import yaml
+
+    from avq import __version__
+
+    if (episodes is None) == (timesteps is None):
+        raise ValueError("give exactly one of episodes or timesteps")
+    env = make_env(env_id, env_kwargs)
+    model = make_agent(agent, env, seed=seed, **(params or {}))
+    out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)
+    if (out / "model.zip").exists():
+        raise ValueError(f"{out} already holds a trained run; choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
+    config = {
+        "env": env_id,
+        "env_kwargs": dict(env_kwargs or {}),
+        "agent": agent,
+        "params": _plain(agent_params),
+        "seed": seed,
+        **({"episodes": int(episodes)} if episodes is not None else {"timesteps": int(timesteps)}),
+        "avq_version": __version__,
+    }
+    _atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
+    writer = _ProgressWriter(out / "progress.csv")
+    t0 = time.perf_counter()
+    try:
+        model.learn(total_episodes=episodes, total_timesteps=timesteps, callback=writer, progress_bar=progress)
+    finally:
+        writer.close()
+    wall = time.perf_counter() - t0
+    model.save(out / "model.zip")
+    hist = model.episode_history()
+    rets = hist.get("return", np.zeros(0))
+    tail = rets[-max(1, len(rets) // 10):] if len(rets) else rets
+    summary = {
+        "env": env_id,
+        "agent": agent,
+        "seed": seed,
+        "episodes": int(model.num_episodes),
+        "env_steps": int(model.num_timesteps),
+        "n_cells": int(model.n_cells),
+        "final_return_mean": float(np.mean(tail)) if len(tail) else None,
+        "wall_s": round(wall, 3),
+        "out": str(out),
+    }
+    _atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
+    return summary
+
+
+def _plain(value: Any) -> Any:
+    """NumPy values and tuples as plain YAML-friendly Python values."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
+    """The ``config.yml`` of a run directory, checked."""
+    import yaml
+
+    path = Path(run_dir) / "config.yml"
+    if not path.is_file():
+        raise ValueError(f"{run_dir}: no config.yml here; is this a directory written by 'avq train'?")
+    try:
+        config = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML ({exc})") from None
+    if not isinstance(config, dict) or "env" not in config or "agent" not in config:
+        raise ValueError(f"{path}: needs at least the keys 'env' and 'agent'")
+    return config
+
+
+def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | None = 0) -> dict[str, Any]:
+    """Load a run's model and evaluate its greedy policy (and, on a maze, from every start)."""
+    from avq.agents.base import load
+    from avq.evaluation import evaluate_policy
+
+    config = read_run_config(run_dir)
+    env = make_env(config["env"], config.get("env_kwargs"))
+    model_path = Path(run_dir) / "model.zip"
+    if not model_path.is_file():
+        raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
+    model = load(model_path, env=env)
+    result = evaluate_policy(model, env, n_episodes=episodes, seed=seed)
+    report: dict[str, Any] = {
+        "run": str(run_dir), "env": config["env"], "agent": config["agent"], "n_cells": int(model.n_cells),
+        **{k: result[k] for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate")},
+    }
+    if hasattr(env.unwrapped, "layout"):
+        maze = evaluate_maze(model, make_env(config["env"], config.get("env_kwargs")))
+        report["maze_success_rate"] = maze["success_rate"]
+        report["maze_path_ratio"] = maze["path_ratio"]
+    return report

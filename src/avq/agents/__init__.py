@@ -2,7 +2,9 @@
 
 from avq.agents.avq_sarsa import AVQSarsa
 from avq.agents.base import BaseAgent, load
+from avq.agents.grid import GridSarsa
 from avq.agents.registry import AGENTS, make_agent
 from avq.agents.tabular import TabularSarsa
+from avq.agents.tiles import TileSarsa
 
-__all__ = ["AVQSarsa", "TabularSarsa", "BaseAgent", "AGENTS", "make_agent", "load"]
+__all__ = ["AVQSarsa", "TabularSarsa", "GridSarsa", "TileSarsa", "BaseAgent", "AGENTS", "make_agent", "load"]

@@ -41,14 +41,21 @@ class AVQSarsa(BaseAgent):
         q_init: Initial action value of the first cell.
         traces: ``"replacing"`` or ``"accumulating"`` eligibility traces.
         merge_every: Run a merge pass after every this many episodes; 0 never merges.
+        merge_age: A cell may merge only after this many complete episodes of its own
+            (0, the paper: at once). Cells made by the value-change trigger start as
+            copies of their parent, so without an age they would merge back at once.
         value_trigger: TD-error magnitude ``theta`` that appends the transition's end
-            state (SPEC §3, optional trigger); None turns it off.
+            state (SPEC §3, optional trigger), terminal states included (a cell at a
+            failure state sharpens the partition where it matters); None turns it off.
         reward_trigger: On a step without a collision, a reward that differs from the
             previous step's (same episode) by at least this much appends the new
             observation as a cell inheriting the current cell's profile, which ends the
             aggregate transition; None turns it off. For tasks without collisions.
         scale: Per-dimension scale of the metric: a number or a sequence; None takes
             ``high - low`` of the observation space (every bound must be finite).
+        obs_bounds: Instead of ``scale``: one ``(low, high)`` per dimension (None keeps the
+            space's) from which the scale ``high - low`` is taken; needed for unbounded
+            dimensions such as CartPole's velocities.
         max_cells: Upper bound on the codebook size; at the bound, appends are refused
             (counted in the episode record as ``refused``).
         seed: Seed of every random choice the agent makes and of the environment's
@@ -85,9 +92,11 @@ class AVQSarsa(BaseAgent):
         q_init: float = 5.0,
         traces: str = "replacing",
         merge_every: int = 1,
+        merge_age: int = 0,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
+        obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
         seed: int | None = None,
     ) -> None:
@@ -96,6 +105,7 @@ class AVQSarsa(BaseAgent):
         self.rho = check_range("rho", rho, 0.0, np.inf, high_open=True)
         self.chi = check_range("chi", chi, -np.inf, 0.0, low_open=True, high_open=True)
         self.merge_every = check_int("merge_every", merge_every, 0)
+        self.merge_age = check_int("merge_age", merge_age, 0)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -106,8 +116,9 @@ class AVQSarsa(BaseAgent):
         )
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.scale = scale
+        self.obs_bounds = obs_bounds
         super().__init__(env, seed)
-        self._scale = self._resolve_scale(scale)
+        self._scale = self._resolve_scale(scale, obs_bounds)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -121,18 +132,33 @@ class AVQSarsa(BaseAgent):
         if not isinstance(act_space, spaces.Discrete):
             raise ValueError(f"AVQSarsa needs a Discrete action space, not {act_space}")
 
-    def _resolve_scale(self, scale: Any) -> np.ndarray:
+    def _resolve_scale(self, scale: Any, obs_bounds: Any) -> np.ndarray:
         space = self.env.observation_space
         n = space.shape[0]
+        if scale is not None and obs_bounds is not None:
+            raise ValueError("give scale or obs_bounds, not both")
         if scale is None:
-            low = np.asarray(space.low, dtype=np.float64)
-            high = np.asarray(space.high, dtype=np.float64)
+            low = np.asarray(space.low, dtype=np.float64).copy()
+            high = np.asarray(space.high, dtype=np.float64).copy()
+            if obs_bounds is not None:
+                try:
+                    pairs = list(obs_bounds)
+                    if len(pairs) != n:
+                        raise ValueError
+                    for d, pair in enumerate(pairs):
+                        if pair is not None:
+                            low[d], high[d] = (float(v) for v in pair)
+                except (TypeError, ValueError):
+                    raise ValueError(
+                        f"obs_bounds must be {n} pairs (low, high), or None to keep a dimension's bounds; "
+                        f"not {obs_bounds!r}"
+                    ) from None
             width = high - low
             for d in range(n):
                 if not (np.isfinite(width[d]) and width[d] > 0):
                     raise ValueError(
                         f"observation dimension {d} has bounds [{low[d]}, {high[d]}], so no scale can be "
-                        f"taken from them; pass scale= (a number or {n} numbers)"
+                        f"taken from them; pass obs_bounds= ({n} pairs (low, high)) or scale= ({n} numbers)"
                     )
             return width
         try:
@@ -162,14 +188,15 @@ class AVQSarsa(BaseAgent):
         self._cb = Codebook(n, self._scale, capacity=64)
         self._q = np.zeros((64, self.n_actions))
         self._e = np.zeros((64, self.n_actions))
+        self._born = np.zeros(64, dtype=np.int64)  # episode (1-based) in which each cell was created
         self._ep = _Episode()
 
     def _ensure_capacity(self) -> None:
         cap = self._q.shape[0]
         if self._cb.size >= cap:
-            for name in ("_q", "_e"):
+            for name in ("_q", "_e", "_born"):
                 old = getattr(self, name)
-                new = np.zeros((2 * cap, self.n_actions))
+                new = np.zeros((2 * cap,) + old.shape[1:], dtype=old.dtype)
                 new[:cap] = old
                 setattr(self, name, new)
 
@@ -190,6 +217,7 @@ class AVQSarsa(BaseAgent):
         c = self._cb.append(x)
         self._q[c] = self._q[parent]
         self._e[c] = 0.0
+        self._born[c] = self.num_episodes + 1
         self._ep.appends += 1
         return c
 
@@ -225,8 +253,15 @@ class AVQSarsa(BaseAgent):
         return self._append(x, parent=j)
 
     def _merge_pass(self) -> int:
-        """SPEC §4: merge every mutually nearest pair whose profiles differ by less than ``rho``."""
+        """SPEC §4: merge every mutually nearest pair whose profiles differ by less than ``rho``.
+
+        With ``merge_age > 0``, a pair merges only if both cells have existed for at
+        least ``merge_age`` complete episodes after the one that created them.
+        """
         pairs = similar_pairs(self._cb.mutual_nearest_pairs(), self._q, self.rho)
+        if self.merge_age and len(pairs):
+            age = self.num_episodes - self._born[: self._cb.size]
+            pairs = pairs[(age[pairs[:, 0]] >= self.merge_age) & (age[pairs[:, 1]] >= self.merge_age)]
         if len(pairs) == 0:
             return 0
         p = self._cb.size
@@ -235,6 +270,9 @@ class AVQSarsa(BaseAgent):
         self._q[:n_new] = merged_values(self._q[:p], mapping, n_new)
         self._q[n_new:p] = 0.0
         self._e[:p] = 0.0
+        born = self._born[:p].copy()
+        self._born[mapping] = born  # survivors keep their birth; merged cells are new
+        self._born[mapping[pairs[:, 0]]] = self.num_episodes
         return len(pairs)
 
     # -- the episode loop (SPEC §2, §5) ---------------------------------------------------
@@ -286,7 +324,7 @@ class AVQSarsa(BaseAgent):
                 a_next = epsilon_greedy(q[j], self.epsilon, self._rng)
                 delta = sarsa_td_error(q[i, a], ret, disc, q[j, a_next], False)
             sarsa_lambda_update(q, self._e, i, a, delta, self.alpha, disc * self.lam, replacing, cb.size)
-            if not terminated and self.value_trigger is not None:
+            if self.value_trigger is not None:
                 j = self._grow_on_value_change(x, j, delta)
             i, a = j, a_next
             ret, disc = 0.0, 1.0
@@ -329,7 +367,7 @@ class AVQSarsa(BaseAgent):
     # -- saving ---------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
-        arrays.update(codebook=self.codebook_, q=self.q_)
+        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self._cb.size].copy())
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -342,6 +380,10 @@ class AVQSarsa(BaseAgent):
             self._ensure_capacity()
             self._cb.append(row)
         self._q[: len(q)] = q
+        born = arrays.get("born", np.zeros(len(q), dtype=np.int64))
+        if born.shape != (len(q),):
+            raise ValueError(f"array born has shape {born.shape}; expected ({len(q)},)")
+        self._born[: len(q)] = born
 
 
 class _Episode:

@@ -14,7 +14,9 @@ import gymnasium as gym
 
 from avq.agents.avq_sarsa import AVQSarsa
 from avq.agents.base import BaseAgent
+from avq.agents.grid import GridSarsa
 from avq.agents.tabular import TabularSarsa
+from avq.agents.tiles import TileSarsa
 
 __all__ = ["AGENTS", "make_agent"]
 
@@ -30,6 +32,16 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
     "tabular": (
         TabularSarsa,
         dict(alpha=0.1, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0, traces="replacing"),
+    ),
+    "grid": (
+        GridSarsa,
+        dict(bins=10, obs_bounds=None, alpha=0.2, lam=0.9, gamma=1.0, epsilon=0.0, q_init=0.0,
+             traces="replacing"),
+    ),
+    "tiles": (
+        TileSarsa,
+        dict(n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None, alpha=0.5, lam=0.9, gamma=1.0,
+             epsilon=0.0, q_init=0.0, traces="replacing"),
     ),
 }
 

@@ -1,0 +1,241 @@
+"""Sarsa(λ) on a fixed uniform grid over a Box observation space (a baseline for AVQ)."""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents.base import BaseAgent, EpisodeRecord, check_sarsa_params
+from avq.tilecoding import normalize_obs_bounds, resolve_bounds
+
+__all__ = ["GridSarsa"]
+
+
+def bin_coordinates(x: np.ndarray, low: np.ndarray, bins_per_unit: np.ndarray, bins: np.ndarray) -> np.ndarray:
+    """The bin of each dimension of ``x`` (rows of a batch ``(b, n)`` or one ``(n,)``).
+
+    Bin ``k`` of dimension ``d`` is ``[low_d + k w_d, low_d + (k + 1) w_d)`` with
+    ``w_d = (high_d - low_d) / bins_d`` (``bins_per_unit = 1 / w``); the last bin also
+    holds ``high_d``. Values outside the bounds fall in the edge bins.
+    """
+    k = np.floor((x - low) * bins_per_unit).astype(np.int64)
+    return np.clip(k, 0, bins - 1)
+
+
+class GridSarsa(BaseAgent):
+    """Sarsa(λ) on a fixed uniform discretization of a ``Box`` observation space.
+
+    Every dimension is cut into equal bins between its bounds (the space's, or
+    ``obs_bounds``); the cell of an observation is its bin in every dimension, and
+    the agent takes one ε-greedy decision per primitive step, as tabular Sarsa(λ)
+    does on the cells. This is the fixed-resolution baseline AVQ is compared with.
+
+    Args:
+        env: A Gymnasium environment (or registered id) with a 1-D ``Box`` observation
+            space and ``Discrete`` actions.
+        bins: Bins per dimension: an int, or one int per dimension.
+        obs_bounds: None to use the space's bounds, or one entry per dimension:
+            ``(low, high)``, or None to keep the space's bounds for that dimension.
+            Every dimension must end up bounded (CartPole's velocities are not).
+            Observations outside the bounds fall in the edge bins.
+        alpha: Step size, in (0, 1].
+        lam: Trace decay λ, in [0, 1].
+        gamma: Discount γ, in [0, 1].
+        epsilon: Exploration rate, in [0, 1].
+        q_init: Initial action value of every cell.
+        traces: ``"replacing"`` or ``"accumulating"``.
+        seed: Seed of every random choice the agent makes and of the env's first reset.
+
+    Attributes:
+        q_: ``(prod(bins), m)`` action values, row = flat bin index (C order, see
+            :meth:`cells`); bins never visited hold ``q_init``.
+        visited_: Flat indices of the bins visited so far, in the order first visited.
+        n_cells: Number of distinct bins visited so far.
+
+    The table is preallocated with ``prod(bins)`` rows; internally rows are handed to
+    bins in the order they are first visited, so that each update touches only the
+    visited rows (the rest have zero traces).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env | str,
+        *,
+        bins: int | Sequence[int] = 10,
+        obs_bounds: Sequence[tuple[float, float] | None] | None = None,
+        alpha: float = 0.2,
+        lam: float = 0.9,
+        gamma: float = 1.0,
+        epsilon: float = 0.0,
+        q_init: float = 0.0,
+        traces: str = "replacing",
+        seed: int | None = None,
+    ) -> None:
+        check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
+        self.bins = _check_bins(bins)
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        super().__init__(env, seed)
+        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
+        n = self._low.shape[0]
+        b = np.broadcast_to(np.asarray(self.bins, dtype=np.int64), (n,)) if isinstance(self.bins, int) else None
+        if b is None:
+            if len(self.bins) != n:
+                raise ValueError(f"bins must be an int or {n} ints (one per observation dimension), not {self.bins!r}")
+            b = np.asarray(self.bins, dtype=np.int64)
+        self._bins = b.copy()
+        self._bins_per_unit = self._bins / (self._high - self._low)
+        self._strides = np.array([int(np.prod(self._bins[d + 1:])) for d in range(n)], dtype=np.int64)
+        self._n_bins = int(np.prod(self._bins))
+
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        if isinstance(obs_space, spaces.Discrete):
+            raise ValueError(
+                "GridSarsa needs a Box observation space, but this environment's is Discrete: "
+                "it is a table already; use the 'tabular' agent (avq.TabularSarsa)"
+            )
+        if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
+            raise ValueError(f"GridSarsa needs a 1-D Box observation space, not {obs_space}")
+        if not isinstance(act_space, spaces.Discrete):
+            raise ValueError(f"GridSarsa needs a Discrete action space, not {act_space}")
+
+    # -- learned state ------------------------------------------------------------------
+    @property
+    def n_cells(self) -> int:
+        return self._n if self._is_setup else 0
+
+    @property
+    def q_(self) -> np.ndarray:
+        out = np.full((self._n_bins, self.n_actions), self.q_init)
+        if self._is_setup:
+            out[self._bin_of_row[: self._n]] = self._q[: self._n]
+        return out
+
+    @property
+    def visited_(self) -> np.ndarray:
+        return self._bin_of_row[: self._n].copy() if self._is_setup else np.zeros(0, dtype=np.int64)
+
+    def cells(self, observations: np.ndarray) -> np.ndarray:
+        """The flat bin index (row of :attr:`q_`) of each observation of a batch ``(b, n)``.
+
+        The flat index of bins ``(k_0, ..., k_{n-1})`` is C order:
+        ``k_0 * bins_1 * ... * bins_{n-1} + ... + k_{n-1}``.
+        """
+        x = np.asarray(observations, dtype=np.float64).reshape(-1, self._low.shape[0])
+        return bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides
+
+    def _setup(self) -> None:
+        self._q = np.full((self._n_bins, self.n_actions), self.q_init)
+        self._e = np.zeros((self._n_bins, self.n_actions))
+        self._row_of_bin = np.full(self._n_bins, -1, dtype=np.int64)
+        self._bin_of_row = np.zeros(self._n_bins, dtype=np.int64)
+        self._n = 0
+        self._ep_row = 0
+        self._ep_action = 0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._ep_new = 0
+
+    def _row(self, obs: Any) -> int:
+        """The table row of ``obs``'s bin, handing out the next row on a first visit."""
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self._low.shape:
+            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
+        k = int(bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides)
+        row = int(self._row_of_bin[k])
+        if row < 0:
+            row = self._n
+            self._row_of_bin[k] = row
+            self._bin_of_row[row] = k
+            self._n += 1
+            self._ep_new += 1
+        return row
+
+    # -- the episode loop -----------------------------------------------------------------
+    def _begin_episode(self, obs: np.ndarray) -> None:
+        self._e[: self._n] = 0.0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._ep_new = 0
+        self._ep_row = self._row(obs)
+        self._ep_action = epsilon_greedy(self._q[self._ep_row], self.epsilon, self._rng)
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        env, q = self.env, self._q
+        s, a = self._ep_row, self._ep_action
+        replacing = self.traces == "replacing"
+        decay = self.gamma * self.lam
+        n = 0
+        ended = False
+        while n < max_steps:
+            obs, r, terminated, truncated, _ = env.step(a)
+            n += 1
+            r = float(r)
+            self._ep_return += r
+            if terminated:
+                s2, a2 = s, a
+                delta = sarsa_td_error(q[s, a], r, self.gamma, 0.0, True)
+            else:
+                s2 = self._row(obs)
+                a2 = epsilon_greedy(q[s2], self.epsilon, self._rng)
+                delta = sarsa_td_error(q[s, a], r, self.gamma, q[s2, a2], False)
+            sarsa_lambda_update(q, self._e, s, a, delta, self.alpha, decay, replacing, self._n)
+            s, a = s2, a2
+            if terminated or truncated:
+                ended = True
+                break
+        self._ep_row, self._ep_action = s, a
+        self._ep_steps += n
+        return n, ended
+
+    def _end_episode(self) -> EpisodeRecord:
+        return {
+            "steps": self._ep_steps,
+            "return": self._ep_return,
+            "n_cells": self._n,
+            "appends": self._ep_new,
+            "merges": 0,
+            "refused": 0,
+            "decisions": self._ep_steps,
+        }
+
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        rows = self._row_of_bin[self.cells(obs)]
+        out = np.zeros(len(obs), dtype=np.int64)  # an unvisited bin: all q_init, lowest index
+        seen = rows >= 0
+        out[seen] = self._q[rows[seen]].argmax(axis=1)
+        return out
+
+    # -- saving ---------------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        meta, arrays = super()._state_dict()
+        arrays["visited"] = self.visited_
+        arrays["q"] = self._q[: self._n].copy()
+        return meta, arrays
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        super()._load_state_dict(meta, arrays)
+        visited, q = arrays["visited"], arrays["q"]
+        n = len(visited)
+        if visited.ndim != 1 or q.shape != (n, self.n_actions) or len(set(visited.tolist())) != n:
+            raise ValueError(f"array shapes visited {visited.shape}, q {q.shape} do not fit {self.n_actions} actions")
+        if n and (visited.min() < 0 or visited.max() >= self._n_bins):
+            raise ValueError(f"visited bins must lie in [0, {self._n_bins})")
+        self._bin_of_row[:n] = visited
+        self._row_of_bin[visited] = np.arange(n)
+        self._q[:n] = q
+        self._n = n
+
+
+def _check_bins(bins: Any) -> int | list[int]:
+    def ok(b: Any) -> bool:
+        return not isinstance(b, bool) and isinstance(b, (int, np.integer)) and b >= 1
+
+    if ok(bins):
+        return int(bins)
+    if isinstance(bins, (list, tuple, np.ndarray)) and len(bins) > 0 and all(ok(b) for b in bins):
+        return [int(b) for b in bins]
+    raise ValueError(f"bins must be an integer >= 1 or a sequence of them (one per dimension), not {bins!r}")

@@ -1,0 +1,253 @@
+"""Linear Sarsa(λ) with tile coding (Sutton & Barto 2018, §9.5.4 and §12.7): a baseline for AVQ."""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params
+from avq.tilecoding import TileCoder, normalize_obs_bounds, resolve_bounds
+
+__all__ = ["TileSarsa", "mark_traces"]
+
+
+def mark_traces(e: np.ndarray, active: np.ndarray, a: int, replacing: bool) -> None:
+    """Mark the traces of the active tiles for action ``a``, all but what
+    :func:`avq.agents._td.sarsa_lambda_update` marks itself.
+
+    That function marks the trace of one (row, action), ``(active[0], a)``, and then
+    updates every row; a tile-coded state has one row per tiling, so the others are
+    marked here first.
+
+    Replacing traces: ``e[i, a] = 1`` for every active tile ``i`` (setting
+    ``active[0]`` here too is harmless), and the other actions' traces of those
+    tiles are cleared, as in Sutton & Barto's replacing-trace Sarsa(λ) for Mountain
+    Car. Accumulating traces: ``e[i, a] += 1`` once per occurrence of ``i`` in
+    ``active[1:]`` (a tile can occur twice once the coder hashes).
+    """
+    if replacing:
+        e[active] = 0.0
+        e[active, a] = 1.0
+    else:
+        np.add.at(e[:, a], active[1:], 1.0)
+
+
+class TileSarsa(BaseAgent):
+    """Linear Sarsa(λ) on tile-coded features, like Sutton & Barto's Mountain Car agent.
+
+    The observation is tile-coded by :class:`avq.tilecoding.TileCoder` (``n_tilings``
+    tilings of ``tiles_per_dim`` tiles per dimension, displaced asymmetrically as in
+    Sutton's ``tiles3``, indices from an index hash table of ``iht_size``). The value
+    of an action is the sum of its weights over the active tiles,
+    ``Q(s, a) = sum_i w[i, a]``, and Sarsa(λ) learns the weights with eligibility
+    traces on the features, one ε-greedy decision per primitive step.
+
+    Args:
+        env: A Gymnasium environment (or registered id) with a 1-D ``Box`` observation
+            space and ``Discrete`` actions.
+        n_tilings: Number of tilings (active tiles per observation).
+        tiles_per_dim: Tiles per dimension across the bounds, an int or one per dimension.
+        iht_size: Size of the index hash table = number of weight rows.
+        obs_bounds: None to use the space's bounds, or one entry per dimension:
+            ``(low, high)``, or None to keep the space's bounds for that dimension.
+            Every dimension must end up bounded (CartPole's velocities are not).
+        alpha: Total step size, in (0, 1]; each weight moves by ``alpha / n_tilings``
+            times the TD error (times its trace), so that one update moves ``Q`` of the
+            state by about ``alpha`` of the error, as in the book.
+        lam: Trace decay λ, in [0, 1].
+        gamma: Discount γ, in [0, 1].
+        epsilon: Exploration rate, in [0, 1].
+        q_init: Initial value of every ``Q(s, a)``: weights start at ``q_init / n_tilings``.
+        traces: ``"replacing"`` or ``"accumulating"`` traces on the features.
+        seed: Seed of every random choice the agent makes and of the env's first reset.
+
+    Attributes:
+        weights_: ``(iht_size, m)`` weights.
+        tile_coder_: The :class:`~avq.tilecoding.TileCoder` with its index hash table.
+        n_cells: Tiles in use in the index hash table.
+
+    Episode records count, in ``appends``, the tiles first met in the episode and,
+    in ``refused``, the tile lookups that overflowed the full table and were hashed.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env | str,
+        *,
+        n_tilings: int = 8,
+        tiles_per_dim: int | Sequence[int] = 8,
+        iht_size: int = 4096,
+        obs_bounds: Sequence[tuple[float, float] | None] | None = None,
+        alpha: float = 0.5,
+        lam: float = 0.9,
+        gamma: float = 1.0,
+        epsilon: float = 0.0,
+        q_init: float = 0.0,
+        traces: str = "replacing",
+        seed: int | None = None,
+    ) -> None:
+        check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
+        self.n_tilings = check_int("n_tilings", n_tilings, 1)
+        self.tiles_per_dim = _check_tiles_per_dim(tiles_per_dim)
+        self.iht_size = check_int("iht_size", iht_size, 1)
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        super().__init__(env, seed)
+        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
+        n = self._low.shape[0]
+        if isinstance(self.tiles_per_dim, list) and len(self.tiles_per_dim) != n:
+            raise ValueError(
+                f"tiles_per_dim must be an int or {n} ints (one per observation dimension), not {self.tiles_per_dim!r}"
+            )
+        if self.iht_size < self.n_tilings:
+            raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
+
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        if isinstance(obs_space, spaces.Discrete):
+            raise ValueError(
+                "TileSarsa needs a Box observation space, but this environment's is Discrete: "
+                "there is nothing to tile-code; use the 'tabular' agent (avq.TabularSarsa)"
+            )
+        if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
+            raise ValueError(f"TileSarsa needs a 1-D Box observation space, not {obs_space}")
+        if not isinstance(act_space, spaces.Discrete):
+            raise ValueError(f"TileSarsa needs a Discrete action space, not {act_space}")
+
+    # -- learned state ------------------------------------------------------------------
+    @property
+    def n_cells(self) -> int:
+        return self._coder.n_used if self._is_setup else 0
+
+    @property
+    def weights_(self) -> np.ndarray:
+        return self._w.copy()
+
+    @property
+    def tile_coder_(self) -> TileCoder:
+        return self._coder
+
+    def q_values(self, observations: np.ndarray) -> np.ndarray:
+        """``Q(s, a)`` for every action of each observation of a batch ``(b, n)``: ``(b, m)``.
+
+        A query: tiles never met count with their initial weight and are not added.
+        """
+        if not self._is_setup:
+            raise RuntimeError("TileSarsa has not learned yet; call learn() first")
+        x = np.asarray(observations, dtype=np.float64).reshape(-1, self._low.shape[0])
+        out = np.empty((len(x), self.n_actions))
+        w0 = np.full(self.n_actions, self.q_init / self.n_tilings)
+        for b, xb in enumerate(x):
+            active = self._coder(xb, readonly=True)
+            rows = np.where(active[:, None] >= 0, self._w[np.maximum(active, 0)], w0)
+            out[b] = rows.sum(axis=0)
+        return out
+
+    def _setup(self) -> None:
+        bounds = list(zip(self._low.tolist(), self._high.tolist()))
+        self._coder = TileCoder(bounds, self.tiles_per_dim, self.n_tilings, self.iht_size)
+        self._w = np.full((self.iht_size, self.n_actions), self.q_init / self.n_tilings)
+        self._e = np.zeros((self.iht_size, self.n_actions))
+        self._step_size = self.alpha / self.n_tilings
+        self._ep_active = np.zeros(self.n_tilings, dtype=np.int64)
+        self._ep_action = 0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._ep_used0 = 0
+        self._ep_overflows0 = 0
+
+    def _features(self, obs: Any) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self._low.shape:
+            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
+        return self._coder(x)
+
+    def _values(self, active: np.ndarray) -> np.ndarray:
+        """``Q(s, .)`` of the state with these active tiles (one summation order everywhere)."""
+        return self._w[active].sum(axis=0)
+
+    # -- the episode loop (Sutton & Barto 2018, §12.7) ------------------------------------
+    def _begin_episode(self, obs: np.ndarray) -> None:
+        # Rows past n_used have never been marked, so clearing the used ones clears all.
+        self._e[: self._coder.n_used] = 0.0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._ep_used0 = self._coder.n_used
+        self._ep_overflows0 = self._coder.overflows
+        self._ep_active = self._features(obs)
+        self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        env, w, e, coder = self.env, self._w, self._e, self._coder
+        active, a = self._ep_active, self._ep_action
+        replacing = self.traces == "replacing"
+        decay = self.gamma * self.lam
+        n = 0
+        ended = False
+        while n < max_steps:
+            obs, r, terminated, truncated, _ = env.step(a)
+            n += 1
+            r = float(r)
+            self._ep_return += r
+            q_sa = self._values(active)[a]
+            if terminated:
+                active2, a2 = active, a
+                delta = sarsa_td_error(q_sa, r, self.gamma, 0.0, True)
+            else:
+                active2 = self._features(obs)
+                q2 = self._values(active2)
+                a2 = epsilon_greedy(q2, self.epsilon, self._rng)
+                delta = sarsa_td_error(q_sa, r, self.gamma, q2[a2], False)
+            mark_traces(e, active, a, replacing)
+            # Rows are handed out in order of first use: rows past n_used have zero traces.
+            sarsa_lambda_update(w, e, int(active[0]), a, delta, self._step_size, decay, replacing, coder.n_used)
+            active, a = active2, a2
+            if terminated or truncated:
+                ended = True
+                break
+        self._ep_active, self._ep_action = active, a
+        self._ep_steps += n
+        return n, ended
+
+    def _end_episode(self) -> EpisodeRecord:
+        return {
+            "steps": self._ep_steps,
+            "return": self._ep_return,
+            "n_cells": self._coder.n_used,
+            "appends": self._coder.n_used - self._ep_used0,
+            "merges": 0,
+            "refused": self._coder.overflows - self._ep_overflows0,
+            "decisions": self._ep_steps,
+        }
+
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        return self.q_values(obs).argmax(axis=1).astype(np.int64)
+
+    # -- saving ---------------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        meta, arrays = super()._state_dict()
+        meta["overflows"] = self._coder.overflows
+        arrays["weights"] = self.weights_
+        arrays["tiles"] = self._coder.tiles()
+        return meta, arrays
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        super()._load_state_dict(meta, arrays)
+        w = arrays["weights"]
+        if w.shape != self._w.shape:
+            raise ValueError(f"weights of shape {w.shape} do not fit ({self.iht_size}, {self.n_actions})")
+        self._coder.restore(arrays["tiles"], int(meta["overflows"]))
+        self._w[:] = w
+
+
+def _check_tiles_per_dim(value: Any) -> int | list[int]:
+    def ok(v: Any) -> bool:
+        return not isinstance(v, bool) and isinstance(v, (int, np.integer)) and v >= 1
+
+    if ok(value):
+        return int(value)
+    if isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0 and all(ok(v) for v in value):
+        return [int(v) for v in value]
+    raise ValueError(f"tiles_per_dim must be an integer >= 1 or a sequence of them (one per dimension), not {value!r}")
