@@ -31,6 +31,7 @@ they fall in tiles beyond the edge, which get indices like any other.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Sequence
 
 import numpy as np
@@ -166,7 +167,11 @@ class TileCoder:
         self._to_units = self.tiles_per_dim / (self.high - self.low) * self.n_tilings
         # tiles3: tiling t is displaced by t * (2d + 1) / n_tilings tiles along dimension d.
         t = np.arange(self.n_tilings, dtype=np.int64)[:, None]
-        self._offsets = t * (2 * np.arange(self.n_dims, dtype=np.int64)[None, :] + 1)
+        offsets = t * (2 * np.arange(self.n_dims, dtype=np.int64)[None, :] + 1)  # (n_tilings, n_dims)
+        self._offsets_by_dim = offsets.T.tolist()
+        self._tiling_ids = range(self.n_tilings)
+        self._low_list = self.low.tolist()
+        self._to_units_list = self._to_units.tolist()
         self._index: dict[tuple[int, ...], int] = {}
         self.n_used = 0
         self.overflows = 0
@@ -188,16 +193,20 @@ class TileCoder:
         and ``q_d = floor((x_d - low_d) * tiles_per_dim_d / (high_d - low_d) * n_tilings)``,
         exactly ``tiles3``'s coordinates of the scaled observation.
         """
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != (self.n_dims,):
-            raise ValueError(f"x has shape {x.shape}; the tile coder has {self.n_dims} dimensions")
-        if not np.all(np.isfinite(x)):
-            raise ValueError(f"x must be finite, not {x.tolist()}")
-        q = np.floor((x - self.low) * self._to_units).astype(np.int64)
-        out = np.empty((self.n_tilings, self.n_dims + 1), dtype=np.int64)
-        out[:, 0] = np.arange(self.n_tilings)
-        np.floor_divide(q[None, :] + self._offsets, self.n_tilings, out=out[:, 1:])
-        return out
+        return np.array(self._keys(x), dtype=np.int64)
+
+    def _keys(self, x: np.ndarray) -> list[tuple[int, ...]]:
+        # Plain Python on a handful of numbers: several times faster than NumPy here.
+        xs = np.asarray(x, dtype=np.float64).tolist()
+        if not isinstance(xs, list) or len(xs) != self.n_dims:
+            raise ValueError(f"x has shape {np.shape(x)}; the tile coder has {self.n_dims} dimensions")
+        try:
+            q = [math.floor((v - lo) * u) for v, lo, u in zip(xs, self._low_list, self._to_units_list)]
+        except (OverflowError, ValueError):
+            raise ValueError(f"x must be finite, not {xs}") from None
+        n = self.n_tilings
+        columns = [[(qd + o) // n for o in offs] for qd, offs in zip(q, self._offsets_by_dim)]
+        return list(zip(self._tiling_ids, *columns))
 
     def __call__(self, x: np.ndarray, readonly: bool = False) -> np.ndarray:
         """Indices of the ``n_tilings`` tiles active at ``x`` (one per tiling, in tiling order).
@@ -211,14 +220,12 @@ class TileCoder:
             ``(n_tilings,)`` int64 indices in ``[0, size)`` (or ``-1``, see ``readonly``).
             Two tilings can share an index only after the table has overflowed.
         """
-        out = np.empty(self.n_tilings, dtype=np.int64)
         index = self._index
-        for t, key in enumerate(map(tuple, self.coordinates(x).tolist())):
-            i = index.get(key)
-            if i is None:
-                i = self._unseen(key, readonly)
-            out[t] = i
-        return out
+        keys = self._keys(x)
+        out = [index.get(key) for key in keys]
+        if None in out:
+            out = [self._unseen(key, readonly) if i is None else i for key, i in zip(keys, out)]
+        return np.array(out, dtype=np.int64)
 
     def _unseen(self, key: tuple[int, ...], readonly: bool) -> int:
         if self.n_used >= self.size:
