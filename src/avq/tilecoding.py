@@ -257,7 +257,9 @@ class TileCoder:
         if self.n_used:
             raise ValueError("restore needs an empty tile coder")
         if tiles.ndim != 2 or tiles.shape[1] != self.n_dims + 1 or len(tiles) > self.size:
-            raise ValueError(f"tiles of shape {tiles.shape} do not fit a coder of {self.n_dims} dims and size {self.size}")
+            raise ValueError(
+                f"tiles of shape {tiles.shape} do not fit a coder of {self.n_dims} dims and size {self.size}"
+            )
         for row in tiles.tolist():
             key = tuple(int(c) for c in row)
             if key in self._index:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any, Sequence
 
 import gymnasium as gym
@@ -13,6 +14,9 @@ from avq.agents.base import BaseAgent, EpisodeRecord, check_sarsa_params
 from avq.tilecoding import normalize_obs_bounds, resolve_bounds
 
 __all__ = ["GridSarsa"]
+
+#: Largest table GridSarsa preallocates (rows); 10^7 rows of 4 actions take 320 MB for values alone.
+_MAX_BINS = 10_000_000
 
 
 def bin_coordinates(x: np.ndarray, low: np.ndarray, bins_per_unit: np.ndarray, bins: np.ndarray) -> np.ndarray:
@@ -67,10 +71,10 @@ class GridSarsa(BaseAgent):
         *,
         bins: int | Sequence[int] = 10,
         obs_bounds: Sequence[tuple[float, float] | None] | None = None,
-        alpha: float = 0.2,
-        lam: float = 0.9,
+        alpha: float = 0.5,
+        lam: float = 0.7,
         gamma: float = 1.0,
-        epsilon: float = 0.0,
+        epsilon: float = 0.1,
         q_init: float = 0.0,
         traces: str = "replacing",
         seed: int | None = None,
@@ -81,15 +85,24 @@ class GridSarsa(BaseAgent):
         super().__init__(env, seed)
         self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
         n = self._low.shape[0]
-        b = np.broadcast_to(np.asarray(self.bins, dtype=np.int64), (n,)) if isinstance(self.bins, int) else None
-        if b is None:
-            if len(self.bins) != n:
-                raise ValueError(f"bins must be an int or {n} ints (one per observation dimension), not {self.bins!r}")
-            b = np.asarray(self.bins, dtype=np.int64)
-        self._bins = b.copy()
+        if isinstance(self.bins, int):
+            self._bins = np.full(n, self.bins, dtype=np.int64)
+        elif len(self.bins) == n:
+            self._bins = np.asarray(self.bins, dtype=np.int64)
+        else:
+            raise ValueError(f"bins must be an int or {n} ints (one per observation dimension), not {self.bins!r}")
+        self._n_bins = math.prod(self._bins.tolist())
+        if self._n_bins > _MAX_BINS:
+            raise ValueError(
+                f"bins gives {self._n_bins} cells, more than a preallocated table should hold ({_MAX_BINS}); "
+                "use fewer bins or the 'tiles' agent"
+            )
         self._bins_per_unit = self._bins / (self._high - self._low)
-        self._strides = np.array([int(np.prod(self._bins[d + 1:])) for d in range(n)], dtype=np.int64)
-        self._n_bins = int(np.prod(self._bins))
+        self._strides = np.array([math.prod(self._bins[d + 1:].tolist()) for d in range(n)], dtype=np.int64)
+        self._low_list = self._low.tolist()
+        self._per_dim = list(
+            zip(self._low_list, self._bins_per_unit.tolist(), self._bins.tolist(), self._strides.tolist())
+        )
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         if isinstance(obs_space, spaces.Discrete):
@@ -141,10 +154,13 @@ class GridSarsa(BaseAgent):
 
     def _row(self, obs: Any) -> int:
         """The table row of ``obs``'s bin, handing out the next row on a first visit."""
-        x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self._low.shape:
-            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
-        k = int(bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides)
+        xs = np.asarray(obs, dtype=np.float64).tolist()
+        if not isinstance(xs, list) or len(xs) != len(self._low_list):
+            raise ValueError(f"observation has shape {np.shape(obs)}; the space says {self._low.shape}")
+        # bin_coordinates in plain Python (the same float operations, faster for one observation).
+        k = 0
+        for v, (lo, u, b, stride) in zip(xs, self._per_dim):
+            k += min(max(math.floor((v - lo) * u), 0), b - 1) * stride
         row = int(self._row_of_bin[k])
         if row < 0:
             row = self._n

@@ -85,7 +85,7 @@ class TileSarsa(BaseAgent):
         alpha: float = 0.5,
         lam: float = 0.9,
         gamma: float = 1.0,
-        epsilon: float = 0.0,
+        epsilon: float = 0.05,
         q_init: float = 0.0,
         traces: str = "replacing",
         seed: int | None = None,
@@ -166,7 +166,7 @@ class TileSarsa(BaseAgent):
 
     def _values(self, active: np.ndarray) -> np.ndarray:
         """``Q(s, .)`` of the state with these active tiles (one summation order everywhere)."""
-        return self._w[active].sum(axis=0)
+        return self._w.take(active, axis=0).sum(axis=0)
 
     # -- the episode loop (Sutton & Barto 2018, §12.7) ------------------------------------
     def _begin_episode(self, obs: np.ndarray) -> None:
