@@ -3,9 +3,9 @@
 Runs AVQSarsa with the value-change trigger on (and optionally the reward trigger)
 over a grid of settings on three tasks with different character, for a few seeds:
 MountainCar-v0 (no collisions, sparse progress), CartPole-v1 (unbounded velocities,
-given obs_bounds) and the lau2002 GridMaze (collisions). Each configuration is
-scored by its mean rank over the tasks (final return on the control tasks, greedy
-success on the maze). Results go to a CSV.
+given obs_bounds), the lau2002 GridMaze and RobotMaze (collisions). Each
+configuration is scored by its mean rank over the tasks (mean return of the last
+100 episodes on the control tasks, greedy success from every start on the mazes). Results go to a CSV.
 
     python scripts/sweep_avq_defaults.py --seeds 2 --episodes 300 --out sweep-avq.csv
 """
@@ -33,7 +33,7 @@ GRID = {
     "rho": [0.1, 1.0],
 }
 FIXED = dict(lam=0.7, gamma=1.0, chi=-50.0, q_init=0.0, merge_every=1, merge_age=5)
-TASKS = ("MountainCar-v0", "CartPole-v1", "avq/GridMaze-v0")
+TASKS = ("MountainCar-v0", "CartPole-v1", "avq/GridMaze-v0", "avq/RobotMaze-v0")
 
 
 def run(task: str, cfg: dict, seed: int, episodes: int) -> dict:
@@ -44,7 +44,7 @@ def run(task: str, cfg: dict, seed: int, episodes: int) -> dict:
     agent = AVQSarsa(env, seed=seed, **kw).learn(total_episodes=episodes)
     h = agent.episode_history()
     score = float(np.mean(h["return"][-100:]))
-    if task == "avq/GridMaze-v0":
+    if task in ("avq/GridMaze-v0", "avq/RobotMaze-v0"):
         score = evaluate_maze(agent, gym.make(task))["success_rate"]
     return {"task": task, **cfg, "seed": seed, "score": score, "n_cells": agent.n_cells,
             "env_steps": agent.num_timesteps}

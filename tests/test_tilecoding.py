@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from avq.tilecoding import TileCoder, resolve_bounds, tile_hash
+from avq.agents._spaces import resolve_bounds
+from avq.tilecoding import TileCoder, tile_hash
 
 
 def unit_coder(size=64, n_tilings=2):

@@ -32,12 +32,11 @@ they fall in tiles beyond the edge, which get indices like any other.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
-from gymnasium import spaces
 
-__all__ = ["TileCoder", "resolve_bounds", "tile_hash"]
+__all__ = ["TileCoder", "tile_hash"]
 
 _MASK64 = (1 << 64) - 1
 
@@ -54,65 +53,6 @@ def tile_hash(coords: tuple[int, ...]) -> int:
     h = (h * 0xC4CEB9FE1A85EC53) & _MASK64
     h ^= h >> 33
     return h
-
-
-def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
-    """The finite ``(low, high)`` per dimension of a 1-D ``Box`` space, overridden by ``obs_bounds``.
-
-    Args:
-        space: A 1-D ``Box`` observation space.
-        obs_bounds: None, or one entry per dimension: ``(low, high)`` or None to keep
-            the space's bounds for that dimension.
-
-    Raises:
-        ValueError: ``obs_bounds`` is malformed, or a dimension ends up with an
-            infinite or empty range (the message names the dimension).
-    """
-    low = np.asarray(space.low, dtype=np.float64).ravel().copy()  # type: ignore[attr-defined]
-    high = np.asarray(space.high, dtype=np.float64).ravel().copy()  # type: ignore[attr-defined]
-    n = low.shape[0]
-    if obs_bounds is not None:
-        entries = normalize_obs_bounds(obs_bounds)
-        if len(entries) != n:
-            raise ValueError(f"obs_bounds must have {n} entries (one per observation dimension), not {len(entries)}")
-        for d, entry in enumerate(entries):
-            if entry is not None:
-                low[d], high[d] = entry
-    for d in range(n):
-        if not (np.isfinite(low[d]) and np.isfinite(high[d])):
-            raise ValueError(
-                f"observation dimension {d} has bounds [{low[d]}, {high[d]}], which cannot be divided into "
-                f"tiles or bins; pass obs_bounds= with a finite (low, high) for it, e.g. obs_bounds=[...] of "
-                f"{n} entries, None for the dimensions whose bounds are fine"
-            )
-        if not high[d] > low[d]:
-            raise ValueError(f"observation dimension {d} has bounds [{low[d]}, {high[d]}]; high must exceed low")
-    return low, high
-
-
-def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] | None] | None:
-    """``obs_bounds`` as JSON-able lists of floats (so that it survives saving), checked for form.
-
-    Raises:
-        ValueError: an entry is neither None nor a pair of numbers with ``low < high``.
-    """
-    if obs_bounds is None:
-        return None
-    if isinstance(obs_bounds, (str, bytes)) or not hasattr(obs_bounds, "__len__"):
-        raise ValueError(f"obs_bounds must be None or a sequence of (low, high) pairs, not {obs_bounds!r}")
-    out: list[list[float] | None] = []
-    for d, entry in enumerate(obs_bounds):
-        if entry is None:
-            out.append(None)
-            continue
-        try:
-            lo, hi = (float(v) for v in entry)
-        except (TypeError, ValueError):
-            raise ValueError(f"obs_bounds[{d}] must be a (low, high) pair of numbers or None, not {entry!r}") from None
-        if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
-            raise ValueError(f"obs_bounds[{d}] must be finite with low < high, not {entry!r}")
-        out.append([lo, hi])
-    return out
 
 
 class TileCoder:

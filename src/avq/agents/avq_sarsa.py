@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range, check_sarsa_params
 from avq.quantizer import Codebook
 from avq.rules import APPEND, CHI, collision_rule, may_append, merged_values, similar_pairs
@@ -116,9 +117,9 @@ class AVQSarsa(BaseAgent):
         )
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.scale = scale
-        self.obs_bounds = obs_bounds
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        self._scale = self._resolve_scale(scale, obs_bounds)
+        self._scale = self._resolve_scale(scale, self.obs_bounds)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -138,29 +139,8 @@ class AVQSarsa(BaseAgent):
         if scale is not None and obs_bounds is not None:
             raise ValueError("give scale or obs_bounds, not both")
         if scale is None:
-            low = np.asarray(space.low, dtype=np.float64).copy()
-            high = np.asarray(space.high, dtype=np.float64).copy()
-            if obs_bounds is not None:
-                try:
-                    pairs = list(obs_bounds)
-                    if len(pairs) != n:
-                        raise ValueError
-                    for d, pair in enumerate(pairs):
-                        if pair is not None:
-                            low[d], high[d] = (float(v) for v in pair)
-                except (TypeError, ValueError):
-                    raise ValueError(
-                        f"obs_bounds must be {n} pairs (low, high), or None to keep a dimension's bounds; "
-                        f"not {obs_bounds!r}"
-                    ) from None
-            width = high - low
-            for d in range(n):
-                if not (np.isfinite(width[d]) and width[d] > 0):
-                    raise ValueError(
-                        f"observation dimension {d} has bounds [{low[d]}, {high[d]}], so no scale can be "
-                        f"taken from them; pass obs_bounds= ({n} pairs (low, high)) or scale= ({n} numbers)"
-                    )
-            return width
+            low, high = resolve_bounds(space, obs_bounds)
+            return high - low
         try:
             s = np.broadcast_to(np.asarray(scale, dtype=np.float64), (n,)).copy()
         except (ValueError, TypeError):

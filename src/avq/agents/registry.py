@@ -29,6 +29,17 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
         dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.0, rho=5.0, chi=-50.0,
              q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0),
     ),
+    # AVQ for any task: collisions when the env reports them, plus the value-change trigger
+    # (SPEC §3) so that tasks without collisions grow a partition too; a merge guard so that
+    # value-triggered cells (copies of their parent) get time to differ before a merge pass.
+    # Metric scaled by the observation bounds (obs_bounds= for unbounded dimensions).
+    # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
+    "avq": (
+        AVQSarsa,
+        dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=1.0, chi=-50.0,
+             q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=5.0,
+             reward_trigger=None, scale=None),
+    ),
     "tabular": (
         TabularSarsa,
         dict(alpha=0.1, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0, traces="replacing"),

@@ -10,7 +10,8 @@ from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params
-from avq.tilecoding import TileCoder, normalize_obs_bounds, resolve_bounds
+from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.tilecoding import TileCoder
 
 __all__ = ["TileSarsa", "mark_traces"]
 
