@@ -26,3 +26,92 @@ def nearest_index(vectors: np.ndarray, size: int, x: np.ndarray, inv_scale: np.n
             best_d2 = s
             best = k
     return best, best_d2
+
+
+@njit(cache=True, nogil=True)
+def neighbours_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray):
+    """For each of the first ``size`` vectors: nearest other (lowest index on ties), its distance,
+    and the second-smallest distance (equal to the first when the nearest is not unique)."""
+    n = vectors.shape[1]
+    y = np.empty((size, n))
+    for k in range(size):
+        for d in range(n):
+            y[k, d] = vectors[k, d] * inv_scale[d]
+    nn = np.full(size, -1, dtype=np.int64)
+    d1 = np.full(size, np.inf)
+    d2 = np.full(size, np.inf)
+    for i in range(size):
+        for j in range(size):
+            if j == i:
+                continue
+            s = 0.0
+            for d in range(n):
+                z = y[i, d] - y[j, d]
+                s += z * z
+            dist = np.sqrt(s)
+            if dist < d1[i]:
+                d2[i] = d1[i]
+                d1[i] = dist
+                nn[i] = j
+            elif dist < d2[i]:
+                d2[i] = dist
+    return nn, d1, d2
+
+
+@njit(cache=True, nogil=True)
+def mutual_nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray) -> np.ndarray:
+    """Pairs ``(i, j)``, ``i < j``, each the other's unique nearest vector (SPEC §4, Fig. 2's strict <)."""
+    nn, d1, d2 = neighbours_kernel(vectors, size, inv_scale)
+    count = 0
+    for i in range(size):
+        j = nn[i]
+        if j > i and d1[i] < d2[i] and d1[j] < d2[j] and nn[j] == i:
+            count += 1
+    out = np.empty((count, 2), dtype=np.int64)
+    k = 0
+    for i in range(size):
+        j = nn[i]
+        if j > i and d1[i] < d2[i] and d1[j] < d2[j] and nn[j] == i:
+            out[k, 0] = i
+            out[k, 1] = j
+            k += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def merge_kernel(vectors: np.ndarray, size: int, pairs: np.ndarray) -> np.ndarray:
+    """Replace each disjoint pair ``(i, j)``, ``i < j``, by its midpoint in slot ``i``; drop slot ``j``
+    and move later vectors down. Returns ``mapping[old] = new`` (both members map to one index)."""
+    n = vectors.shape[1]
+    removed = np.zeros(size, dtype=np.bool_)
+    partner = np.full(size, -1, dtype=np.int64)
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        for d in range(n):
+            vectors[i, d] = (vectors[i, d] + vectors[j, d]) / 2.0
+        removed[j] = True
+        partner[j] = i
+    mapping = np.empty(size, dtype=np.int64)
+    w = 0
+    for r in range(size):
+        if not removed[r]:
+            mapping[r] = w
+            if w != r:
+                vectors[w, :] = vectors[r, :]
+            w += 1
+    for r in range(size):
+        if removed[r]:
+            mapping[r] = mapping[partner[r]]
+    return mapping
+
+
+@njit(cache=True, nogil=True)
+def compact_rows(values: np.ndarray, mapping: np.ndarray) -> int:
+    """Move each kept row ``r`` (the first old row of each new index) to ``mapping[r]``; return the new count."""
+    nxt = 0
+    for r in range(mapping.shape[0]):
+        if mapping[r] == nxt:
+            if nxt != r:
+                values[nxt] = values[r]
+            nxt += 1
+    return nxt

@@ -17,7 +17,7 @@ from typing import Sequence
 
 import numpy as np
 
-from avq._kernels import nearest_index
+from avq._kernels import merge_kernel, mutual_nearest_pairs_kernel, nearest_index, neighbours_kernel
 
 __all__ = ["Codebook"]
 
@@ -114,15 +114,7 @@ class Codebook:
                 if len(others) > 1:
                     d2[r] = others[1][0]
             return nn, d1, d2
-        diff = y[:, None, :] - y[None, :, :]
-        dmat = np.sqrt((diff * diff).sum(axis=2))
-        np.fill_diagonal(dmat, np.inf)
-        order = np.argsort(dmat, axis=1, kind="stable")[:, :2]
-        rows = np.arange(p)
-        nn = order[:, 0]
-        d1 = dmat[rows, nn]
-        d2 = dmat[rows, order[:, 1]] if p > 2 else np.full(p, np.inf)
-        return nn.astype(np.int64), d1, d2
+        return neighbours_kernel(self._data, p, self.inv_scale)
 
     def mutual_nearest_pairs(self) -> np.ndarray:
         """Pairs ``(i, j)``, ``i < j``, that are each other's unique nearest vector (SPEC §4).
@@ -132,13 +124,12 @@ class Codebook:
         neighbours has no nearest neighbour in this sense and is not merged. The pairs are
         disjoint because each vector has at most one unique nearest neighbour.
         """
+        if self.size <= _TREE_THRESHOLD:
+            return mutual_nearest_pairs_kernel(self._data, self.size, self.inv_scale)
         nn, d1, d2 = self.neighbours()
-        p = self.size
-        if p < 2:
-            return np.zeros((0, 2), np.int64)
+        i = np.arange(self.size)
         unique = d1 < d2
-        i = np.arange(p)
-        mutual = unique & (nn > i) & unique[np.maximum(nn, 0)] & (nn[np.maximum(nn, 0)] == i)
+        mutual = unique & (nn > i) & unique[nn] & (nn[nn] == i)
         return np.stack([i[mutual], nn[mutual]], axis=1).astype(np.int64)
 
     # -- changes -------------------------------------------------------------------
@@ -167,19 +158,10 @@ class Codebook:
         flat = pairs.ravel()
         if len(np.unique(flat)) != len(flat):
             raise ValueError("merge pairs must be disjoint")
-        lo = pairs.min(axis=1)
-        hi = pairs.max(axis=1)
-        mids = (self._data[lo] + self._data[hi]) / 2.0
-        self._data[lo] = mids
-        keep = np.ones(p, dtype=bool)
-        keep[hi] = False
-        new_index = np.cumsum(keep) - 1
-        mapping = new_index.copy()
-        mapping[hi] = new_index[lo]
-        kept = self._data[:p][keep].copy()
-        self.size = len(kept)
-        self._data[: self.size] = kept
-        return mapping.astype(np.int64)
+        ordered = np.sort(pairs, axis=1)
+        mapping = merge_kernel(self._data, p, ordered)
+        self.size = p - len(ordered)
+        return mapping
 
     def _grow(self) -> None:
         data = np.zeros((2 * len(self._data), self.n_dims), dtype=np.float64)

@@ -7,18 +7,24 @@ its codebook and values. Read them against SPEC.md line by line.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-__all__ = ["CHI", "APPEND", "KEEP", "collision_rule", "may_append", "similar_pairs", "merged_values"]
+__all__ = [
+    "CHI", "APPEND", "KEEP", "collision_rule", "may_append", "mean_square_difference", "similar_pairs",
+    "merged_values",
+]
 
 #: Outcomes of :func:`collision_rule`.
-CHI, APPEND, KEEP = "chi", "append", "keep"
+CHI, APPEND, KEEP = 0, 1, 2
 
 
+@njit(cache=True)
 def may_append(dist_to_nearest: float, d_min: float) -> bool:
     """SPEC §3: a new vector is never appended within ``d_min`` of an existing one."""
     return dist_to_nearest > d_min
 
 
+@njit(cache=True)
 def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> str:
     """SPEC §3, on a collision at ``x`` while in cell ``i``.
 
@@ -36,7 +42,20 @@ def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> 
     """
     if dist_to_own <= d_min:
         return CHI
-    return APPEND if may_append(dist_to_nearest, d_min) else KEEP
+    if may_append(dist_to_nearest, d_min):
+        return APPEND
+    return KEEP
+
+
+@njit(cache=True)
+def mean_square_difference(q_i: np.ndarray, q_j: np.ndarray) -> float:
+    """SPEC §4, criterion 2: ``(1/m) * sum_a (q_i[a] - q_j[a])**2``."""
+    m = q_i.shape[0]
+    total = 0.0
+    for a in range(m):
+        d = q_i[a] - q_j[a]
+        total += d * d
+    return total / m
 
 
 def similar_pairs(pairs: np.ndarray, q: np.ndarray, rho: float) -> np.ndarray:
@@ -46,11 +65,9 @@ def similar_pairs(pairs: np.ndarray, q: np.ndarray, rho: float) -> np.ndarray:
     ``(1/m) * sum_a (Q[i, a] - Q[j, a])**2``.
     """
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    if len(pairs) == 0:
-        return pairs
-    d = q[pairs[:, 0]] - q[pairs[:, 1]]
-    msd = (d * d).mean(axis=1)
-    return pairs[msd < rho]
+    q = np.asarray(q, dtype=np.float64)
+    keep = [mean_square_difference(q[i], q[j]) < rho for i, j in pairs]
+    return pairs[np.array(keep, dtype=bool)] if len(pairs) else pairs
 
 
 def merged_values(q: np.ndarray, mapping: np.ndarray, n_new: int) -> np.ndarray:

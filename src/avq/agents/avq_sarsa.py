@@ -8,11 +8,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents import _avq_core as core
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.agents._td import epsilon_greedy
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range, check_sarsa_params
 from avq.quantizer import Codebook
-from avq.rules import APPEND, CHI, collision_rule, may_append, merged_values, similar_pairs
 
 __all__ = ["AVQSarsa"]
 
@@ -153,236 +153,141 @@ class AVQSarsa(BaseAgent):
     # -- learned state ------------------------------------------------------------------
     @property
     def n_cells(self) -> int:
-        return self._cb.size if self._is_setup else 0
+        return int(self._S[core.SIZE]) if self._is_setup else 0
 
     @property
     def codebook_(self) -> np.ndarray:
-        return self._cb.vectors.copy()
+        return self._V[: self.n_cells].copy()
 
     @property
     def q_(self) -> np.ndarray:
-        return self._q[: self._cb.size].copy()
+        return self._Q[: self.n_cells].copy()
 
     def _setup(self) -> None:
         n = self.env.observation_space.shape[0]
-        self._cb = Codebook(n, self._scale, capacity=64)
-        self._q = np.zeros((64, self.n_actions))
-        self._e = np.zeros((64, self.n_actions))
-        self._born = np.zeros(64, dtype=np.int64)  # episode (1-based) in which each cell was created
-        self._ep = _Episode()
+        cap = min(self.max_cells, 256) + 4
+        self._V = np.zeros((cap, n))
+        self._Q = np.zeros((cap, self.n_actions))
+        self._E = np.zeros((cap, self.n_actions))
+        self._born = np.zeros(cap, dtype=np.int64)  # episode (1-based) in which each cell was created
+        self._inv_scale = 1.0 / self._scale
+        P = np.zeros(core.N_P)
+        P[[core.ALPHA, core.LAM, core.GAMMA, core.EPS, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
+            self.alpha, self.lam, self.gamma, self.epsilon, self.d_min, self.rho, self.chi, self.q_init)
+        P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
+        P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
+        IP = np.zeros(core.N_IP, dtype=np.int64)
+        IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS]] = (
+            self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells)
+        self._P, self._IP = P, IP
+        self._S = np.zeros(core.N_S, dtype=np.int64)
+        self._S[core.EPISODES] = self.num_episodes
+        self._F = np.zeros(core.N_F)
+        self._rec = np.zeros(core.N_R)
 
-    def _ensure_capacity(self) -> None:
-        cap = self._q.shape[0]
-        if self._cb.size >= cap:
-            for name in ("_q", "_e", "_born"):
-                old = getattr(self, name)
-                new = np.zeros((2 * cap,) + old.shape[1:], dtype=old.dtype)
-                new[:cap] = old
-                setattr(self, name, new)
+    def _ensure_capacity(self, extra: int) -> None:
+        """Room for ``extra`` more cells (the kernels append in place and never reallocate)."""
+        cap = self._V.shape[0]
+        if self._S[core.SIZE] + extra <= cap:
+            return
+        new_cap = max(2 * cap, int(self._S[core.SIZE]) + extra)
+        for name in ("_V", "_Q", "_E", "_born"):
+            old = getattr(self, name)
+            new = np.zeros((new_cap,) + old.shape[1:], dtype=old.dtype)
+            new[:cap] = old
+            setattr(self, name, new)
+
+    def _state(self) -> tuple:
+        return (self._V, self._Q, self._E, self._born, self._inv_scale, self._P, self._IP, self._S, self._F)
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self._cb_shape:
-            raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._cb_shape}")
+        if x.shape != self._V.shape[1:]:
+            raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._V.shape[1:]}")
         return x
 
-    @property
-    def _cb_shape(self) -> tuple[int, ...]:
-        return (self._cb.n_dims,)
-
-    # -- the rules of the paper -----------------------------------------------------------
-    def _append(self, x: np.ndarray, parent: int) -> int:
-        """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
-        self._ensure_capacity()
-        c = self._cb.append(x)
-        self._q[c] = self._q[parent]
-        self._e[c] = 0.0
-        self._born[c] = self.num_episodes + 1
-        self._ep.appends += 1
-        return c
-
-    def _may_append(self, dist_nearest: float) -> bool:
-        """Whether a point at ``dist_nearest`` from its nearest vector may become a vector."""
-        if not may_append(dist_nearest, self.d_min):
-            return False
-        if self._cb.size >= self.max_cells:
-            self._ep.refused += 1
-            return False
-        return True
-
-    def _grow_on_collision(self, x: np.ndarray, i: int, a: int, j: int, dist_j: float) -> int:
-        """Apply :func:`avq.rules.collision_rule` at ``x`` (nearest vector ``j`` at ``dist_j``).
-
-        Returns the cell ``x`` belongs to afterwards.
-        """
-        dist_i = dist_j if j == i else self._cb.distance(i, x)
-        outcome = collision_rule(dist_i, dist_j, self.d_min)
-        if outcome == CHI:
-            self._q[i, a] = self.chi
-        elif outcome == APPEND and self._may_append(dist_j):
-            j = self._append(x, parent=i)
-            self._q[j, a] = self.chi  # the rule at c itself: ||y_c - x|| = 0 <= d_min
-        return j
-
-    def _grow_on_value_change(self, x: np.ndarray, j: int, delta: float) -> int:
-        """SPEC §3, optional value-change trigger. Returns the cell of ``x`` afterwards."""
-        if self.value_trigger is None or abs(delta) < self.value_trigger:
-            return j
-        if not self._may_append(self._cb.distance(j, x)):
-            return j
-        return self._append(x, parent=j)
-
-    def _merge_pass(self) -> int:
-        """SPEC §4: merge every mutually nearest pair whose profiles differ by less than ``rho``.
-
-        With ``merge_age > 0``, a pair merges only if both cells have existed for at
-        least ``merge_age`` complete episodes after the one that created them.
-        """
-        pairs = similar_pairs(self._cb.mutual_nearest_pairs(), self._q, self.rho)
-        if self.merge_age and len(pairs):
-            age = self.num_episodes - self._born[: self._cb.size]
-            pairs = pairs[(age[pairs[:, 0]] >= self.merge_age) & (age[pairs[:, 1]] >= self.merge_age)]
-        if len(pairs) == 0:
-            return 0
-        p = self._cb.size
-        mapping = self._cb.merge(pairs)
-        n_new = self._cb.size
-        self._q[:n_new] = merged_values(self._q[:p], mapping, n_new)
-        self._q[n_new:p] = 0.0
-        self._e[:p] = 0.0
-        born = self._born[:p].copy()
-        self._born[mapping] = born  # survivors keep their birth; merged cells are new
-        self._born[mapping[pairs[:, 0]]] = self.num_episodes
-        return len(pairs)
-
-    # -- the episode loop (SPEC §2, §5) ---------------------------------------------------
+    # -- the episode loop (SPEC §2, §5; the rules are in avq.agents._avq_core) --------------
     def _begin_episode(self, obs: np.ndarray) -> None:
         x = self._as_obs(obs, 0)
-        if self._cb.size == 0:
-            # SPEC §3: the codebook starts with the very first observation.
-            self._cb.append(x)
-            self._q[0] = self.q_init
-        self._e[: self._cb.size] = 0.0
-        ep = self._ep
-        ep.reset()
-        ep.cell = self._cb.nearest(x)[0]
-        ep.action = epsilon_greedy(self._q[ep.cell], self.epsilon, self._rng)
-        ep.decisions = 1
+        self._ensure_capacity(1)
+        cell = core.begin_episode(*self._state(), x)
+        self._S[core.ACTION] = epsilon_greedy(self._Q[cell], self.epsilon, self._rng)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, cb, ep = self.env, self._cb, self._ep
-        gamma, replacing = self.gamma, self.traces == "replacing"
-        i, a = ep.cell, ep.action
-        ret, disc = ep.ret, ep.disc
+        env, rng, eps = self.env, self._rng, self.epsilon
+        S = self._S
+        a = int(S[core.ACTION])
         n = 0
         ended = False
         while n < max_steps:
+            self._ensure_capacity(3)  # a step appends at most three cells
+            state = self._state()
             obs, r, terminated, truncated, info = env.step(a)
             n += 1
-            r = float(r)
-            x = self._as_obs(obs, ep.steps + n)
-            ret += disc * r
-            disc *= gamma
-            ep.episode_return += r
-            collision = bool(info.get("collision", False))
-            j, dist_j = cb.nearest(x)
-            if self.reward_trigger is not None:
-                jump = ep.steps + n > 1 and abs(r - ep.prev_reward) >= self.reward_trigger
-                ep.prev_reward = r
-                if jump and not collision and self._may_append(dist_j):
-                    j = self._append(x, parent=i)
-            if j == i and not (collision or terminated or truncated):
+            x = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+            done = terminated or truncated
+            j = core.observe(*state, x, float(r), bool(info.get("collision", False)), done)
+            if j < 0:
                 continue
-            # The aggregate transition (i, a) -> j ends here.
-            if collision:
-                j = self._grow_on_collision(x, i, a, j, dist_j)
-            q = self._q
-            if terminated:
-                a_next = a
-                delta = sarsa_td_error(q[i, a], ret, disc, 0.0, True)
-            else:
-                a_next = epsilon_greedy(q[j], self.epsilon, self._rng)
-                delta = sarsa_td_error(q[i, a], ret, disc, q[j, a_next], False)
-            sarsa_lambda_update(q, self._e, i, a, delta, self.alpha, disc * self.lam, replacing, cb.size)
-            if self.value_trigger is not None:
-                j = self._grow_on_value_change(x, j, delta)
-            i, a = j, a_next
-            ret, disc = 0.0, 1.0
-            if terminated or truncated:
+            if not terminated:
+                a = epsilon_greedy(self._Q[j], eps, rng)
+            core.learn(*state, x, j, a, terminated, done)
+            if done:
                 ended = True
                 break
-            ep.decisions += 1
-        ep.cell, ep.action, ep.ret, ep.disc = i, a, ret, disc
-        ep.steps += n
         return n, ended
 
     def _end_episode(self) -> EpisodeRecord:
-        ep = self._ep
-        merges = 0
-        if self.merge_every and (self.num_episodes % self.merge_every == 0):
-            merges = self._merge_pass()
+        core.end_episode(*self._state(), self._rec)
+        rec = self._rec
         return {
-            "steps": ep.steps,
-            "return": ep.episode_return,
-            "n_cells": self._cb.size,
-            "appends": ep.appends,
-            "merges": merges,
-            "refused": ep.refused,
-            "decisions": ep.decisions,
+            "steps": int(rec[core.R_STEPS]),
+            "return": float(rec[core.R_RETURN]),
+            "n_cells": int(rec[core.R_CELLS]),
+            "appends": int(rec[core.R_APPENDS]),
+            "merges": int(rec[core.R_MERGES]),
+            "refused": int(rec[core.R_REFUSED]),
+            "decisions": int(rec[core.R_DECISIONS]),
         }
 
     # -- queries -----------------------------------------------------------------------------
     def cells(self, observations: np.ndarray) -> np.ndarray:
         """The cell index of each observation (a batch ``(b, n)``)."""
-        if not self._is_setup or self._cb.size == 0:
+        if self.n_cells == 0:
             raise RuntimeError("AVQSarsa has no codebook yet; call learn() first")
-        return self._cb.nearest_batch(np.asarray(observations, dtype=np.float64))
+        return self._codebook().nearest_batch(np.asarray(observations, dtype=np.float64))
+
+    def _codebook(self) -> Codebook:
+        """The current codebook as a :class:`Codebook` (a copy: geometry queries only)."""
+        cb = Codebook(self._V.shape[1], self._scale, capacity=max(self.n_cells, 1))
+        for row in self._V[: self.n_cells]:
+            cb.append(row)
+        return cb
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
-        if self._cb.size == 0:
+        if self.n_cells == 0:
             return np.zeros(len(obs), dtype=np.int64)
-        cells = self._cb.nearest_batch(obs)
-        return self._q[cells].argmax(axis=1).astype(np.int64)
+        return self._Q[self.cells(obs)].argmax(axis=1).astype(np.int64)
 
     # -- saving ---------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
-        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self._cb.size].copy())
+        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         super()._load_state_dict(meta, arrays)
         codebook, q = arrays["codebook"], arrays["q"]
-        n = self.env.observation_space.shape[0]
+        n = self._V.shape[1]
         if codebook.ndim != 2 or codebook.shape[1] != n or q.shape != (codebook.shape[0], self.n_actions):
-            raise ValueError(f"array shapes codebook {codebook.shape}, q {q.shape} do not fit ({n} dims, {self.n_actions} actions)")
-        for row in codebook:
-            self._ensure_capacity()
-            self._cb.append(row)
-        self._q[: len(q)] = q
+            raise ValueError(
+                f"array shapes codebook {codebook.shape}, q {q.shape} do not fit ({n} dims, {self.n_actions} actions)"
+            )
         born = arrays.get("born", np.zeros(len(q), dtype=np.int64))
         if born.shape != (len(q),):
             raise ValueError(f"array born has shape {born.shape}; expected ({len(q)},)")
-        self._born[: len(q)] = born
-
-
-class _Episode:
-    """The agent's position inside the current episode, kept between ``_advance`` calls."""
-
-    __slots__ = ("cell", "action", "ret", "disc", "steps", "episode_return", "appends", "refused", "decisions",
-                 "prev_reward")
-
-    def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        self.cell = 0
-        self.action = 0
-        self.ret = 0.0  # discounted return of the aggregate transition so far
-        self.disc = 1.0  # gamma ** k for the k steps of the transition so far
-        self.steps = 0
-        self.episode_return = 0.0
-        self.appends = 0
-        self.refused = 0
-        self.decisions = 0
-        self.prev_reward = 0.0  # reward of the previous primitive step (reward trigger)
+        p = len(q)
+        self._ensure_capacity(p)
+        self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born
+        self._S[core.SIZE] = p
+        self._S[core.EPISODES] = self.num_episodes

@@ -1,0 +1,269 @@
+"""AVQ Sarsa(λ) as compiled kernels on packed arrays (SPEC §2-§5).
+
+One implementation of the agent's rules serves both paths:
+
+* the generic path (any Gymnasium environment) steps the environment in Python
+  and calls :func:`observe` after every step and :func:`learn` at the end of
+  every aggregate transition;
+* the fused paths (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``) run the
+  environment's dynamics and these same kernels inside one compiled loop.
+
+The random stream is the agent's ``numpy.random.Generator``: the generic path
+draws in Python (:func:`avq.agents._td.epsilon_greedy`), the fused path draws
+from the very same generator inside the compiled loop
+(:func:`epsilon_greedy_rng`), and both make the same calls in the same order,
+so both paths give identical results.
+
+State lives in preallocated arrays: ``V`` codebook ``(cap, n)``, ``Q`` and ``E``
+``(cap, m)``, ``born`` ``(cap,)``; parameters in ``P`` (float) and ``IP`` (int);
+the agent's position in the episode in ``S`` (int) and ``F`` (float). Index
+names are the module constants below.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from avq._kernels import compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index
+from avq.rules import APPEND as APPEND_OUTCOME
+from avq.rules import CHI as CHI_OUTCOME
+from avq.rules import collision_rule, may_append, mean_square_difference
+
+# P: float parameters
+ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG = range(10)
+N_P = 10
+# IP: int parameters
+REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS = range(4)
+N_IP = 4
+# S: int state
+SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE = range(9)
+N_S = 9
+# F: float state
+RET, DISC, EP_RETURN, PREV_R = range(4)
+N_F = 4
+# Records written by the fused loops, one row per episode.
+R_STEPS, R_RETURN, R_CELLS, R_APPENDS, R_MERGES, R_REFUSED, R_DECISIONS = range(7)
+N_R = 7
+# Status returned by the fused loops.
+DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
+
+
+@njit(cache=True)
+def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray) -> float:
+    s = 0.0
+    for d in range(x.shape[0]):
+        z = (V[i, d] - x[d]) * inv_scale[d]
+        s += z * z
+    return np.sqrt(s)
+
+
+@njit(cache=True)
+def epsilon_greedy_rng(q_row: np.ndarray, epsilon: float, rng) -> int:
+    """Compiled twin of :func:`avq.agents._td.epsilon_greedy`: the same draws, in the same order."""
+    m = q_row.shape[0]
+    if rng.random() < epsilon:
+        return int(rng.integers(0, m))
+    best = q_row[0]
+    for k in range(1, m):
+        if q_row[k] > best:
+            best = q_row[k]
+    n_ties = 0
+    first = 0
+    for k in range(m):
+        if q_row[k] == best:
+            if n_ties == 0:
+                first = k
+            n_ties += 1
+    if n_ties == 1:
+        return first
+    pick = int(rng.integers(0, n_ties))
+    for k in range(m):
+        if q_row[k] == best:
+            if pick == 0:
+                return k
+            pick -= 1
+    return first
+
+
+@njit(cache=True)
+def _may_append(dist_nearest: float, P, IP, S) -> bool:
+    """SPEC §3: never within d_min of an existing vector; never beyond max_cells (counted)."""
+    if not may_append(dist_nearest, P[DMIN]):
+        return False
+    if S[SIZE] >= IP[MAX_CELLS]:
+        S[REFUSED] += 1
+        return False
+    return True
+
+
+@njit(cache=True)
+def _append(V, Q, E, born, S, x, parent: int) -> int:
+    """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
+    c = S[SIZE]
+    V[c, :] = x
+    Q[c, :] = Q[parent, :]
+    E[c, :] = 0.0
+    born[c] = S[EPISODES] + 1
+    S[SIZE] = c + 1
+    S[APPENDS] += 1
+    return c
+
+
+@njit(cache=True)
+def begin_episode(V, Q, E, born, inv_scale, P, IP, S, F, x) -> int:
+    """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
+    if S[SIZE] == 0:
+        # SPEC §3: the codebook starts with the very first observation.
+        V[0, :] = x
+        Q[0, :] = P[QINIT]
+        E[0, :] = 0.0
+        born[0] = 0
+        S[SIZE] = 1
+    E[: S[SIZE], :] = 0.0
+    S[EP_STEPS] = 0
+    S[APPENDS] = 0
+    S[REFUSED] = 0
+    S[DECISIONS] = 1
+    S[IN_EPISODE] = 1
+    F[RET] = 0.0
+    F[DISC] = 1.0
+    F[EP_RETURN] = 0.0
+    F[PREV_R] = 0.0
+    cell, _ = nearest_index(V, S[SIZE], x, inv_scale)
+    S[CELL] = cell
+    return cell
+
+
+@njit(cache=True)
+def observe(V, Q, E, born, inv_scale, P, IP, S, F, x, r: float, collision: bool, done: bool) -> int:
+    """Account for one primitive step that reached ``x`` with reward ``r``.
+
+    Returns -1 while the aggregate transition goes on (same cell, no collision, not
+    ``done``), else the cell ``j`` it ends in, after the growth rules of SPEC §3
+    that act at once (collision; reward jump).
+    """
+    i = S[CELL]
+    a = S[ACTION]
+    S[EP_STEPS] += 1
+    F[RET] += F[DISC] * r
+    F[DISC] *= P[GAMMA]
+    F[EP_RETURN] += r
+    j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
+    dist_j = np.sqrt(d2)
+    if P[RTRIG] > 0.0:
+        jump = S[EP_STEPS] > 1 and abs(r - F[PREV_R]) >= P[RTRIG]
+        F[PREV_R] = r
+        if jump and not collision and _may_append(dist_j, P, IP, S):
+            j = _append(V, Q, E, born, S, x, i)
+    if j == i and not (collision or done):
+        return -1
+    if collision:
+        # SPEC §3, collision rule (avq.rules.collision_rule).
+        dist_i = dist_j if j == i else scaled_distance(V, i, x, inv_scale)
+        outcome = collision_rule(dist_i, dist_j, P[DMIN])
+        if outcome == CHI_OUTCOME:
+            Q[i, a] = P[CHI]
+        elif outcome == APPEND_OUTCOME and _may_append(dist_j, P, IP, S):
+            j = _append(V, Q, E, born, S, x, i)
+            Q[j, a] = P[CHI]  # the rule at the new cell itself: ||y_c - x|| = 0 <= d_min
+    return j
+
+
+@njit(cache=True)
+def learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
+    """SPEC §5: the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
+
+    Then the optional value-change trigger (SPEC §3). Moves the agent to the next
+    decision and returns its cell.
+    """
+    i = S[CELL]
+    a = S[ACTION]
+    size = S[SIZE]
+    if terminated:
+        delta = F[RET] - Q[i, a]
+    else:
+        delta = F[RET] + F[DISC] * Q[j, a_next] - Q[i, a]
+    if IP[REPLACING]:
+        E[i, a] = 1.0
+    else:
+        E[i, a] += 1.0
+    step = P[ALPHA] * delta
+    decay = F[DISC] * P[LAM]
+    m = Q.shape[1]
+    for s in range(size):
+        for b in range(m):
+            Q[s, b] += step * E[s, b]
+            E[s, b] *= decay
+    if P[VTRIG] > 0.0 and abs(delta) >= P[VTRIG]:
+        if _may_append(scaled_distance(V, j, x, inv_scale), P, IP, S):
+            j = _append(V, Q, E, born, S, x, j)
+    S[CELL] = j
+    S[ACTION] = a_next
+    F[RET] = 0.0
+    F[DISC] = 1.0
+    if not done:
+        S[DECISIONS] += 1
+    return j
+
+
+@njit(cache=True)
+def merge_pass(V, Q, E, born, inv_scale, P, IP, S) -> int:
+    """SPEC §4: merge every mutually nearest pair whose profiles differ by less than rho.
+
+    With ``merge_age > 0`` both cells must have lived ``merge_age`` complete episodes
+    after the one that created them. Merged cells take the lower index; later cells
+    move down. Returns the number of merges.
+    """
+    size = S[SIZE]
+    pairs = mutual_nearest_pairs_kernel(V, size, inv_scale)
+    m = Q.shape[1]
+    keep = np.zeros(pairs.shape[0], dtype=np.bool_)
+    n_keep = 0
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        if not mean_square_difference(Q[i], Q[j]) < P[RHO]:
+            continue
+        if IP[MERGE_AGE] > 0:
+            if S[EPISODES] - born[i] < IP[MERGE_AGE] or S[EPISODES] - born[j] < IP[MERGE_AGE]:
+                continue
+        keep[k] = True
+        n_keep += 1
+    if n_keep == 0:
+        return 0
+    chosen = np.empty((n_keep, 2), dtype=np.int64)
+    c = 0
+    for k in range(pairs.shape[0]):
+        if keep[k]:
+            i, j = pairs[k, 0], pairs[k, 1]
+            chosen[c, 0] = i
+            chosen[c, 1] = j
+            c += 1
+            for b in range(m):
+                Q[i, b] = (Q[i, b] + Q[j, b]) / 2.0  # avq.rules.merged_values
+            born[i] = S[EPISODES]
+    mapping = merge_kernel(V, size, chosen)
+    compact_rows(Q, mapping)
+    compact_rows(born, mapping)
+    new_size = size - n_keep
+    Q[new_size:size, :] = 0.0
+    E[:size, :] = 0.0
+    S[SIZE] = new_size
+    return n_keep
+
+
+@njit(cache=True)
+def end_episode(V, Q, E, born, inv_scale, P, IP, S, F, rec_row) -> None:
+    """Count the episode, run the merge pass when due, and fill its record row."""
+    S[EPISODES] += 1
+    S[IN_EPISODE] = 0
+    merges = 0
+    if IP[MERGE_EVERY] > 0 and S[EPISODES] % IP[MERGE_EVERY] == 0:
+        merges = merge_pass(V, Q, E, born, inv_scale, P, IP, S)
+    rec_row[R_STEPS] = S[EP_STEPS]
+    rec_row[R_RETURN] = F[EP_RETURN]
+    rec_row[R_CELLS] = S[SIZE]
+    rec_row[R_APPENDS] = S[APPENDS]
+    rec_row[R_MERGES] = merges
+    rec_row[R_REFUSED] = S[REFUSED]
+    rec_row[R_DECISIONS] = S[DECISIONS]
