@@ -59,6 +59,11 @@ class AVQSarsa(BaseAgent):
             dimensions such as CartPole's velocities.
         max_cells: Upper bound on the codebook size; at the bound, appends are refused
             (counted in the episode record as ``refused``).
+        fused: On ``avq/GridMaze-v0`` (as made by ``gymnasium.make``, with its standard
+            wrappers), run the maze's dynamics and the agent in one compiled loop.
+            Same results as stepping the environment from Python, much faster; the
+            environment object is brought up to date after every ``learn`` call.
+            False always steps the environment from Python.
         seed: Seed of every random choice the agent makes and of the environment's
             first reset.
 
@@ -99,6 +104,7 @@ class AVQSarsa(BaseAgent):
         scale: float | Sequence[float] | None = None,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
+        fused: bool = True,
         seed: int | None = None,
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
@@ -116,6 +122,9 @@ class AVQSarsa(BaseAgent):
             else check_range("reward_trigger", reward_trigger, 0.0, np.inf, low_open=True, high_open=True)
         )
         self.max_cells = check_int("max_cells", max_cells, 1)
+        if not isinstance(fused, (bool, np.bool_)):
+            raise ValueError(f"fused must be True or False, not {fused!r}")
+        self.fused = bool(fused)
         self.scale = scale
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
@@ -239,16 +248,52 @@ class AVQSarsa(BaseAgent):
 
     def _end_episode(self) -> EpisodeRecord:
         core.end_episode(*self._state(), self._rec)
-        rec = self._rec
-        return {
-            "steps": int(rec[core.R_STEPS]),
-            "return": float(rec[core.R_RETURN]),
-            "n_cells": int(rec[core.R_CELLS]),
-            "appends": int(rec[core.R_APPENDS]),
-            "merges": int(rec[core.R_MERGES]),
-            "refused": int(rec[core.R_REFUSED]),
-            "decisions": int(rec[core.R_DECISIONS]),
-        }
+        return _record(self._rec)
+
+    # -- the fused loop (avq.agents._fused) ------------------------------------------------
+    def _fused_runner(self):
+        if not self.fused:
+            return None
+        plan = _grid_maze_plan(self.env)
+        if plan is None:
+            return None
+        base, time_limit, order = plan
+        layout = base.layout
+        walls = np.ascontiguousarray(layout.walls)
+        starts = np.ascontiguousarray(base._starts, dtype=np.int64)
+        fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
+        max_steps = time_limit._max_episode_steps if time_limit is not None else 1 << 62
+
+        def run(max_steps_budget: int, max_episodes: int, max_records: int):
+            from avq.agents._fused import run_grid_maze
+
+            pos = np.array([base._x, base._y, time_limit._elapsed_steps if time_limit is not None else 0],
+                           dtype=np.int64)
+            rec = np.zeros((max_records, core.N_R))
+            records: list[EpisodeRecord] = []
+            steps = 0
+            while True:
+                n, eps, status = run_grid_maze(
+                    *self._state(), self._rng, base.np_random, walls, layout.goal[0], layout.goal[1], starts,
+                    fixed, max_steps, pos, max_steps_budget - steps, min(max_episodes - len(records), max_records),
+                    rec)
+                steps += n
+                records.extend(_record(rec[k]) for k in range(eps))
+                if status == core.NEED_CAPACITY:
+                    self._ensure_capacity(4)
+                    continue
+                if status == core.RECORDS_FULL or max_records <= len(records):
+                    break
+                break
+            # Bring the environment object up to date, so that stepping it from Python continues here.
+            base._x, base._y = int(pos[0]), int(pos[1])
+            if time_limit is not None:
+                time_limit._elapsed_steps = int(pos[2])
+            if order is not None:
+                order._has_reset = True
+            return steps, records, bool(self._S[core.IN_EPISODE])
+
+        return run
 
     # -- queries -----------------------------------------------------------------------------
     def cells(self, observations: np.ndarray) -> np.ndarray:
@@ -291,3 +336,37 @@ class AVQSarsa(BaseAgent):
         self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born
         self._S[core.SIZE] = p
         self._S[core.EPISODES] = self.num_episodes
+
+
+def _record(rec: np.ndarray) -> EpisodeRecord:
+    return {
+        "steps": int(rec[core.R_STEPS]),
+        "return": float(rec[core.R_RETURN]),
+        "n_cells": int(rec[core.R_CELLS]),
+        "appends": int(rec[core.R_APPENDS]),
+        "merges": int(rec[core.R_MERGES]),
+        "refused": int(rec[core.R_REFUSED]),
+        "decisions": int(rec[core.R_DECISIONS]),
+    }
+
+
+def _grid_maze_plan(env: gym.Env):
+    """``(GridMaze, TimeLimit or None, OrderEnforcing or None)`` if ``env`` is a GridMaze under
+    only Gymnasium's standard wrappers, else None."""
+    from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
+
+    from avq.envs.grid_maze import GridMaze
+
+    time_limit = order = None
+    e = env
+    while isinstance(e, gym.Wrapper):
+        if isinstance(e, TimeLimit) and time_limit is None:
+            time_limit = e
+        elif isinstance(e, OrderEnforcing):
+            order = e
+        elif not isinstance(e, PassiveEnvChecker):
+            return None
+        e = e.env
+    if type(e) is not GridMaze:
+        return None
+    return e, time_limit, order

@@ -174,6 +174,14 @@ class BaseAgent:
     def _end_episode(self) -> EpisodeRecord:
         raise NotImplementedError
 
+    def _fused_runner(self) -> Callable[[int, int, int], tuple[int, list[EpisodeRecord], bool]] | None:
+        """A compiled loop over environment and agent, when the agent has one for this env.
+
+        It is called as ``runner(max_steps, max_episodes, max_records)`` and returns
+        ``(steps, records, in_episode)``. None: step the environment from Python.
+        """
+        return None
+
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
@@ -221,8 +229,42 @@ class BaseAgent:
         steps_left = total_timesteps
         episodes_left = total_episodes
         t0 = time.perf_counter()
+        fused = self._fused_runner()
         try:
             while (steps_left is None or steps_left > 0) and (episodes_left is None or episodes_left > 0):
+                if fused is not None and (self._in_episode or self._env_seed is None):
+                    # Many steps and episodes in one compiled call (see AVQSarsa's fused loops).
+                    chunk = 1 if callback is not None else (64 if bar is not None else 4096)
+                    n, records, self._in_episode = fused(
+                        steps_left if steps_left is not None else 1 << 62,
+                        episodes_left if episodes_left is not None else 1 << 62,
+                        chunk,
+                    )
+                    self.num_timesteps += n
+                    if steps_left is not None:
+                        steps_left -= n
+                        if bar is not None:
+                            bar.update(n)
+                    elapsed = time.perf_counter() - t0
+                    t0 = time.perf_counter()
+                    done_steps = 0
+                    stop = False
+                    for record in records:  # wall time shared out over the chunk's episodes by steps
+                        done_steps += record["steps"]
+                        self.num_episodes += 1
+                        record["episode"] = self.num_episodes
+                        record["wall_s"] = self._wall_s + elapsed * done_steps / max(n, 1)
+                        self.history_.append(record)
+                        if episodes_left is not None:
+                            episodes_left -= 1
+                            if bar is not None:
+                                bar.update(1)
+                        if callback is not None and callback(self, record) is False:
+                            stop = True
+                    self._wall_s += elapsed
+                    if stop:
+                        break
+                    continue
                 if not self._in_episode:
                     obs, _ = self.env.reset(seed=self._env_seed)
                     self._env_seed = None  # seed once; later resets continue the env's stream

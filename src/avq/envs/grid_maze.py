@@ -7,14 +7,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from numba import njit
 
-from avq.envs.layouts import MOVES, Layout, LayoutSpec, load_layout
+from avq.envs.layouts import Layout, LayoutSpec, load_layout
 
 __all__ = ["GridMaze", "NORTH", "EAST", "SOUTH", "WEST"]
 
 NORTH, EAST, SOUTH, WEST = 0, 1, 2, 3
-_DX = tuple(int(v) for v in MOVES[:, 0])
-_DY = tuple(int(v) for v in MOVES[:, 1])
 
 GOAL_REWARD = 10.0
 MOVE_REWARD = -1.0
@@ -27,6 +26,28 @@ _COLOURS = {
     "start": (160, 190, 230),
     "robot": (200, 50, 50),
 }
+
+
+@njit(cache=True)
+def grid_move(walls: np.ndarray, x: int, y: int, a: int, gx: int, gy: int) -> tuple[int, int, float, bool, bool]:
+    """The maze's dynamics for one move: ``(x, y, reward, terminated, collision)`` afterwards.
+
+    A move off the grid or onto a wall is a bump: the robot stays, reward -10.
+    Otherwise the robot moves, reward -1, or +10 and the episode ends at the goal.
+    """
+    if a == 0:
+        nx, ny = x, y - 1
+    elif a == 1:
+        nx, ny = x + 1, y
+    elif a == 2:
+        nx, ny = x, y + 1
+    else:
+        nx, ny = x - 1, y
+    if nx < 0 or ny < 0 or ny >= walls.shape[0] or nx >= walls.shape[1] or walls[ny, nx]:
+        return x, y, BUMP_REWARD, False, True
+    if nx == gx and ny == gy:
+        return nx, ny, GOAL_REWARD, True, False
+    return nx, ny, MOVE_REWARD, False, False
 
 
 class GridMaze(gym.Env[np.ndarray, np.int64]):
@@ -93,10 +114,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         )
         self.action_space = spaces.Discrete(4)
         self._starts = self.layout.free_positions(include_goal=False)
-        # Plain Python copies of the layout for a fast step().
-        self._walls = self.layout.walls.tolist()
         self._dist = self.layout.distances.tolist()
-        self._w, self._h = w, h
         self._gx, self._gy = self.layout.goal
         self._x, self._y = 0, 0
 
@@ -121,18 +139,8 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
             a = int(action)
         if not 0 <= a < 4:
             raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
-        x = self._x + _DX[a]
-        y = self._y + _DY[a]
-        terminated = False
-        if not (0 <= x < self._w and 0 <= y < self._h) or self._walls[y][x]:
-            reward, collision = BUMP_REWARD, True
-        else:
-            self._x, self._y = x, y
-            collision = False
-            if x == self._gx and y == self._gy:
-                reward, terminated = GOAL_REWARD, True
-            else:
-                reward = MOVE_REWARD
+        self._x, self._y, reward, terminated, collision = grid_move(
+            self.layout.walls, self._x, self._y, a, self._gx, self._gy)
         return self._obs(), reward, terminated, False, self._info(collision)
 
     def render(self) -> str | np.ndarray | None:

@@ -1,0 +1,80 @@
+"""Fused training loops: a built-in maze's dynamics and the AVQ kernels in one compiled loop.
+
+The loops call exactly the kernels of :mod:`avq.agents._avq_core` that the generic
+path calls, draw from the same generators in the same order (the agent's for its
+decisions, the environment's ``np_random`` for start positions) and apply the same
+time limit, so that with the same seed both paths give identical codebooks,
+values and episode records.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from avq.agents._avq_core import (
+    ACTION, DONE, EPS, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
+    begin_episode, end_episode, epsilon_greedy_rng, learn, observe,
+)
+from avq.envs.grid_maze import grid_move
+
+
+@njit(cache=True)
+def run_grid_maze(V, Q, E, born, inv_scale, P, IP, S, F, rng, env_rng,
+                  walls, gx, gy, starts, fixed, max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Train on a GridMaze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
+
+    ``pos`` holds the robot's ``x, y`` and the steps taken in the current episode;
+    ``fixed`` is the fixed start ``(x, y)``, or ``(-1, -1)`` for random starts drawn
+    like ``GridMaze.reset``. Returns ``(steps, episodes, status)``.
+    """
+    cap = V.shape[0]
+    steps = 0
+    episodes = 0
+    x = np.empty(2)
+    x[0] = pos[0]
+    x[1] = pos[1]
+    while True:
+        if S[IN_EPISODE] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            if S[SIZE] + 1 > cap:
+                return steps, episodes, NEED_CAPACITY
+            if fixed[0] >= 0:
+                pos[0] = fixed[0]
+                pos[1] = fixed[1]
+            else:
+                k = env_rng.integers(0, starts.shape[0])
+                pos[0] = starts[k, 0]
+                pos[1] = starts[k, 1]
+            pos[2] = 0
+            x[0] = pos[0]
+            x[1] = pos[1]
+            cell = begin_episode(V, Q, E, born, inv_scale, P, IP, S, F, x)
+            S[ACTION] = epsilon_greedy_rng(Q[cell], P[EPS], rng)
+        if steps >= budget_steps:
+            return steps, episodes, DONE
+        if S[SIZE] + 3 > cap:
+            return steps, episodes, NEED_CAPACITY
+        a = S[ACTION]
+        nx, ny, r, terminated, collision = grid_move(walls, pos[0], pos[1], a, gx, gy)
+        pos[0] = nx
+        pos[1] = ny
+        pos[2] += 1
+        truncated = pos[2] >= max_episode_steps
+        x[0] = nx
+        x[1] = ny
+        steps += 1
+        done = terminated or truncated
+        j = observe(V, Q, E, born, inv_scale, P, IP, S, F, x, r, collision, done)
+        if j < 0:
+            continue
+        a_next = a
+        if not terminated:
+            a_next = epsilon_greedy_rng(Q[j], P[EPS], rng)
+        learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
+        if done:
+            end_episode(V, Q, E, born, inv_scale, P, IP, S, F, rec[episodes])
+            episodes += 1

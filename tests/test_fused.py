@@ -1,0 +1,66 @@
+"""The fused GridMaze loop and the generic path give identical results (issue: same algorithm on both paths)."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.wrappers import RecordEpisodeStatistics
+
+import avq
+
+
+def run(name, fused, seed, **learn):
+    env = gym.make("avq/GridMaze-v0")
+    agent = avq.make_agent(name, env, seed=seed, fused=fused)
+    agent.learn(**learn)
+    return agent
+
+
+def same(a, b):
+    assert np.array_equal(a.codebook_, b.codebook_)
+    assert np.array_equal(a.q_, b.q_)
+    ha, hb = a.episode_history(), b.episode_history()
+    for key in ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions"):
+        assert np.array_equal(ha[key], hb[key]), key
+    assert a.num_timesteps == b.num_timesteps and a.num_episodes == b.num_episodes
+
+
+@pytest.mark.parametrize("name", ["avq-paper", "avq"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fused_and_generic_paths_are_identical(name, seed):
+    same(run(name, True, seed, total_episodes=300), run(name, False, seed, total_episodes=300))
+
+
+def test_paths_can_alternate_mid_episode():
+    # 1234 steps fused, 1000 generic, then fused again: the same as one generic run.
+    env = gym.make("avq/GridMaze-v0")
+    mixed = avq.make_agent("avq-paper", env, seed=4)
+    mixed.learn(total_timesteps=1234)
+    mixed.fused = False
+    mixed.learn(total_timesteps=1000)
+    mixed.fused = True
+    mixed.learn(total_timesteps=777)
+    same(mixed, run("avq-paper", False, 4, total_timesteps=3011))
+
+
+def test_fused_path_respects_callbacks_and_fixed_starts():
+    calls = []
+
+    def stop_at_7(agent, record):
+        calls.append(record["episode"])
+        return record["episode"] < 7
+
+    for fused in (True, False):
+        env = gym.make("avq/GridMaze-v0", start="fixed")
+        agent = avq.make_agent("avq-paper", env, seed=2, fused=fused)
+        agent.learn(total_episodes=50, callback=stop_at_7)
+        assert agent.num_episodes == 7
+    assert calls == list(range(1, 8)) * 2
+
+
+def test_other_wrappers_fall_back_to_the_generic_path():
+    env = RecordEpisodeStatistics(gym.make("avq/GridMaze-v0"))
+    agent = avq.make_agent("avq-paper", env, seed=0)
+    assert agent._fused_runner() is None
+    agent.learn(total_episodes=3)
+    assert len(env.return_queue) == 3  # the wrapper saw every episode
+    assert avq.make_agent("avq-paper", gym.make("avq/GridMaze-v0"), seed=0)._fused_runner() is not None
