@@ -15,9 +15,14 @@ from the very same generator inside the compiled loop
 so both paths give identical results.
 
 State lives in preallocated arrays: ``V`` codebook ``(cap, n)``, ``Q`` and ``E``
-``(cap, m)``, ``born`` ``(cap,)``; parameters in ``P`` (float) and ``IP`` (int);
-the agent's position in the episode in ``S`` (int) and ``F`` (float). Index
-names are the module constants below.
+``(cap, m)``, ``born`` ``(cap,)``; ``act`` ``(cap + 1,)`` the rows whose traces are
+non-zero this episode (``act[0]`` of them), so that an update touches only those;
+``pc`` ``(cap + 1, 2)`` the mutual-nearest pairs of the current geometry
+(``pc[0] = (geometry version, count)``), recomputed only after the codebook
+changed; parameters in ``P`` (float) and ``IP`` (int); the agent's position in
+the episode in ``S`` (int) and ``F`` (float). Index names are the module
+constants below. Skipping rows whose traces are zero and reusing the pairs change
+no result: those rows would be updated by ``0 * step``.
 """
 
 from __future__ import annotations
@@ -37,8 +42,8 @@ N_P = 10
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS = range(4)
 N_IP = 4
 # S: int state
-SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE = range(9)
-N_S = 9
+SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM = range(10)
+N_S = 10
 # F: float state
 RET, DISC, EP_RETURN, PREV_R = range(4)
 N_F = 4
@@ -107,11 +112,12 @@ def _append(V, Q, E, born, S, x, parent: int) -> int:
     born[c] = S[EPISODES] + 1
     S[SIZE] = c + 1
     S[APPENDS] += 1
+    S[GEOM] += 1
     return c
 
 
 @njit(cache=True)
-def begin_episode(V, Q, E, born, inv_scale, P, IP, S, F, x) -> int:
+def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
     if S[SIZE] == 0:
         # SPEC §3: the codebook starts with the very first observation.
@@ -120,7 +126,10 @@ def begin_episode(V, Q, E, born, inv_scale, P, IP, S, F, x) -> int:
         E[0, :] = 0.0
         born[0] = 0
         S[SIZE] = 1
-    E[: S[SIZE], :] = 0.0
+        S[GEOM] += 1
+    for k in range(1, act[0] + 1):
+        E[act[k], :] = 0.0
+    act[0] = 0
     S[EP_STEPS] = 0
     S[APPENDS] = 0
     S[REFUSED] = 0
@@ -136,21 +145,26 @@ def begin_episode(V, Q, E, born, inv_scale, P, IP, S, F, x) -> int:
 
 
 @njit(cache=True)
-def observe(V, Q, E, born, inv_scale, P, IP, S, F, x, r: float, collision: bool, done: bool) -> int:
+def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collision: bool, done: bool) -> int:
     """Account for one primitive step that reached ``x`` with reward ``r``.
 
     Returns -1 while the aggregate transition goes on (same cell, no collision, not
     ``done``), else the cell ``j`` it ends in, after the growth rules of SPEC §3
     that act at once (collision; reward jump).
     """
+    j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
+    return observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, np.sqrt(d2))
+
+
+@njit(cache=True)
+def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, dist_j) -> int:
+    """:func:`observe` with the nearest vector ``j`` of ``x`` and its distance already known."""
     i = S[CELL]
     a = S[ACTION]
     S[EP_STEPS] += 1
     F[RET] += F[DISC] * r
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
-    j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
-    dist_j = np.sqrt(d2)
     if P[RTRIG] > 0.0:
         jump = S[EP_STEPS] > 1 and abs(r - F[PREV_R]) >= P[RTRIG]
         F[PREV_R] = r
@@ -171,7 +185,7 @@ def observe(V, Q, E, born, inv_scale, P, IP, S, F, x, r: float, collision: bool,
 
 
 @njit(cache=True)
-def learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
+def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
     """SPEC §5: the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
 
     Then the optional value-change trigger (SPEC §3). Moves the agent to the next
@@ -179,11 +193,20 @@ def learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j: int, a_next: int, termina
     """
     i = S[CELL]
     a = S[ACTION]
-    size = S[SIZE]
     if terminated:
         delta = F[RET] - Q[i, a]
     else:
         delta = F[RET] + F[DISC] * Q[j, a_next] - Q[i, a]
+    n_act = act[0]
+    known = False
+    for k in range(1, n_act + 1):
+        if act[k] == i:
+            known = True
+            break
+    if not known:
+        n_act += 1
+        act[n_act] = i
+        act[0] = n_act
     if IP[REPLACING]:
         E[i, a] = 1.0
     else:
@@ -191,7 +214,8 @@ def learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j: int, a_next: int, termina
     step = P[ALPHA] * delta
     decay = F[DISC] * P[LAM]
     m = Q.shape[1]
-    for s in range(size):
+    for k in range(1, n_act + 1):
+        s = act[k]
         for b in range(m):
             Q[s, b] += step * E[s, b]
             E[s, b] *= decay
@@ -208,7 +232,7 @@ def learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j: int, a_next: int, termina
 
 
 @njit(cache=True)
-def merge_pass(V, Q, E, born, inv_scale, P, IP, S) -> int:
+def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     """SPEC §4: merge every mutually nearest pair whose profiles differ by less than rho.
 
     With ``merge_age > 0`` both cells must have lived ``merge_age`` complete episodes
@@ -216,7 +240,12 @@ def merge_pass(V, Q, E, born, inv_scale, P, IP, S) -> int:
     move down. Returns the number of merges.
     """
     size = S[SIZE]
-    pairs = mutual_nearest_pairs_kernel(V, size, inv_scale)
+    if pc[0, 0] != S[GEOM]:  # the geometry changed since the pairs were found
+        found = mutual_nearest_pairs_kernel(V, size, inv_scale)
+        pc[0, 0] = S[GEOM]
+        pc[0, 1] = found.shape[0]
+        pc[1 : 1 + found.shape[0], :] = found
+    pairs = pc[1 : 1 + pc[0, 1]]
     m = Q.shape[1]
     keep = np.zeros(pairs.shape[0], dtype=np.bool_)
     n_keep = 0
@@ -248,18 +277,20 @@ def merge_pass(V, Q, E, born, inv_scale, P, IP, S) -> int:
     new_size = size - n_keep
     Q[new_size:size, :] = 0.0
     E[:size, :] = 0.0
+    act[0] = 0
     S[SIZE] = new_size
+    S[GEOM] += 1
     return n_keep
 
 
 @njit(cache=True)
-def end_episode(V, Q, E, born, inv_scale, P, IP, S, F, rec_row) -> None:
+def end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec_row) -> None:
     """Count the episode, run the merge pass when due, and fill its record row."""
     S[EPISODES] += 1
     S[IN_EPISODE] = 0
     merges = 0
     if IP[MERGE_EVERY] > 0 and S[EPISODES] % IP[MERGE_EVERY] == 0:
-        merges = merge_pass(V, Q, E, born, inv_scale, P, IP, S)
+        merges = merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S)
     rec_row[R_STEPS] = S[EP_STEPS]
     rec_row[R_RETURN] = F[EP_RETURN]
     rec_row[R_CELLS] = S[SIZE]

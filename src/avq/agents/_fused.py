@@ -12,15 +12,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from avq._kernels import nearest_index
 from avq.agents._avq_core import (
-    ACTION, DONE, EPS, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
-    begin_episode, end_episode, epsilon_greedy_rng, learn, observe,
+    ACTION, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
+    begin_episode, end_episode, epsilon_greedy_rng, learn, observe_at,
 )
 from avq.envs.grid_maze import grid_move
 
 
 @njit(cache=True)
-def run_grid_maze(V, Q, E, born, inv_scale, P, IP, S, F, rng, env_rng,
+def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
                   walls, gx, gy, starts, fixed, max_episode_steps, pos, budget_steps, budget_episodes, rec):
     """Train on a GridMaze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
 
@@ -31,6 +32,10 @@ def run_grid_maze(V, Q, E, born, inv_scale, P, IP, S, F, rng, env_rng,
     cap = V.shape[0]
     steps = 0
     episodes = 0
+    # Nearest cell of every grid position, valid while the codebook does not change.
+    cell_cache = np.full(walls.shape, -1, dtype=np.int64)
+    dist_cache = np.zeros(walls.shape)
+    cache_geom = -1
     x = np.empty(2)
     x[0] = pos[0]
     x[1] = pos[1]
@@ -52,7 +57,7 @@ def run_grid_maze(V, Q, E, born, inv_scale, P, IP, S, F, rng, env_rng,
             pos[2] = 0
             x[0] = pos[0]
             x[1] = pos[1]
-            cell = begin_episode(V, Q, E, born, inv_scale, P, IP, S, F, x)
+            cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
             S[ACTION] = epsilon_greedy_rng(Q[cell], P[EPS], rng)
         if steps >= budget_steps:
             return steps, episodes, DONE
@@ -68,13 +73,21 @@ def run_grid_maze(V, Q, E, born, inv_scale, P, IP, S, F, rng, env_rng,
         x[1] = ny
         steps += 1
         done = terminated or truncated
-        j = observe(V, Q, E, born, inv_scale, P, IP, S, F, x, r, collision, done)
+        if cache_geom != S[GEOM]:
+            cell_cache[:, :] = -1
+            cache_geom = S[GEOM]
+        if cell_cache[ny, nx] < 0:
+            c, d2 = nearest_index(V, S[SIZE], x, inv_scale)
+            cell_cache[ny, nx] = c
+            dist_cache[ny, nx] = np.sqrt(d2)
+        j = observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done,
+                       cell_cache[ny, nx], dist_cache[ny, nx])
         if j < 0:
             continue
         a_next = a
         if not terminated:
             a_next = epsilon_greedy_rng(Q[j], P[EPS], rng)
-        learn(V, Q, E, born, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
+        learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
         if done:
-            end_episode(V, Q, E, born, inv_scale, P, IP, S, F, rec[episodes])
+            end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
             episodes += 1

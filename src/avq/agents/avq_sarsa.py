@@ -179,6 +179,9 @@ class AVQSarsa(BaseAgent):
         self._Q = np.zeros((cap, self.n_actions))
         self._E = np.zeros((cap, self.n_actions))
         self._born = np.zeros(cap, dtype=np.int64)  # episode (1-based) in which each cell was created
+        self._act = np.zeros(cap + 1, dtype=np.int64)
+        self._pc = np.zeros((cap + 1, 2), dtype=np.int64)
+        self._pc[0, 0] = -1
         self._inv_scale = 1.0 / self._scale
         P = np.zeros(core.N_P)
         P[[core.ALPHA, core.LAM, core.GAMMA, core.EPS, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
@@ -200,14 +203,15 @@ class AVQSarsa(BaseAgent):
         if self._S[core.SIZE] + extra <= cap:
             return
         new_cap = max(2 * cap, int(self._S[core.SIZE]) + extra)
-        for name in ("_V", "_Q", "_E", "_born"):
+        for name, extra_rows in (("_V", 0), ("_Q", 0), ("_E", 0), ("_born", 0), ("_act", 1), ("_pc", 1)):
             old = getattr(self, name)
-            new = np.zeros((new_cap,) + old.shape[1:], dtype=old.dtype)
-            new[:cap] = old
+            new = np.zeros((new_cap + extra_rows,) + old.shape[1:], dtype=old.dtype)
+            new[: len(old)] = old
             setattr(self, name, new)
 
     def _state(self) -> tuple:
-        return (self._V, self._Q, self._E, self._born, self._inv_scale, self._P, self._IP, self._S, self._F)
+        return (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
+                self._S, self._F)
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
@@ -336,6 +340,7 @@ class AVQSarsa(BaseAgent):
         self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born
         self._S[core.SIZE] = p
         self._S[core.EPISODES] = self.num_episodes
+        self._S[core.GEOM] += 1
 
 
 def _record(rec: np.ndarray) -> EpisodeRecord:
