@@ -18,13 +18,13 @@ __all__ = [
 CHI, APPEND, KEEP = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def may_append(dist_to_nearest: float, d_min: float) -> bool:
     """SPEC §3: a new vector is never appended within ``d_min`` of an existing one."""
     return dist_to_nearest > d_min
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> str:
     """SPEC §3, on a collision at ``x`` while in cell ``i``.
 

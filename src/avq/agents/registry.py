@@ -36,8 +36,8 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
     # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
     "avq": (
         AVQSarsa,
-        dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=1.0, chi=-50.0,
-             q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=5.0,
+        dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
+             q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
              reward_trigger=None, scale=None),
     ),
     "tabular": (

@@ -28,7 +28,7 @@ _COLOURS = {
 }
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def grid_move(walls: np.ndarray, x: int, y: int, a: int, gx: int, gy: int) -> tuple[int, int, float, bool, bool]:
     """The maze's dynamics for one move: ``(x, y, reward, terminated, collision)`` afterwards.
 
