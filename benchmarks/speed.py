@@ -1,0 +1,209 @@
+"""How many environment steps per second avq learns from, against references measured in the same run.
+
+Every figure is a ratio to a reference timed in this same process (the machine is
+shared and noisy), plus the absolute number:
+
+1. fused AVQ training on GridMaze ``lau2002`` (``avq-paper`` and ``avq``) against a
+   minimal hand-written Numba tabular Sarsa(λ) with the maze inside the loop
+   (:func:`reference_steps_per_second`, the practical speed limit for this work);
+2. the generic path (AVQ stepping a Gymnasium environment from Python) against a
+   loop that only steps the same environment with pre-drawn random actions;
+3. nearest-vector queries inside a compiled loop, 20 to 20,000 vectors, brute force
+   against the k-d tree (``scipy.spatial.cKDTree``) the codebook uses for batches;
+4. ``avq reproduce`` with its defaults, process start to files written, warm cache;
+5. start-up: the first run with an empty compilation cache against a cached one.
+
+    python benchmarks/speed.py            # everything (a few minutes)
+    python benchmarks/speed.py --quick    # smaller budgets, skips 4 and 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import gymnasium as gym
+import numpy as np
+from numba import njit
+
+import avq
+from avq._kernels import nearest_index
+from avq.envs.grid_maze import grid_move
+from avq.envs.layouts import load_layout
+
+
+@njit(cache=True)
+def _reference_run(n_steps, seed, walls, starts, gx, gy):
+    """Tabular Sarsa(λ) on the maze, replacing traces over the visited set, 100-step trials."""
+    np.random.seed(seed)
+    h, w = walls.shape
+    q = np.zeros((h * w, 4))
+    e = np.zeros((h * w, 4))
+    visited = np.empty(h * w * 4, np.int64)
+    alpha, lam, eps = 0.1, 0.7, 0.1
+    steps = 0
+    while steps < n_steps:
+        k = np.random.randint(starts.shape[0])
+        x, y = starts[k, 0], starts[k, 1]
+        s = y * w + x
+        a = np.random.randint(4) if np.random.random() < eps else np.argmax(q[s])
+        nv = 0
+        for t in range(100):
+            x, y, r, term, _ = grid_move(walls, x, y, a, gx, gy)
+            steps += 1
+            s2 = y * w + x
+            if term:
+                delta = r - q[s, a]
+                a2 = 0
+            else:
+                a2 = np.random.randint(4) if np.random.random() < eps else np.argmax(q[s2])
+                delta = r + q[s2, a2] - q[s, a]
+            if e[s, a] == 0.0:
+                visited[nv] = s * 4 + a
+                nv += 1
+            e[s, a] = 1.0
+            for i in range(nv):
+                j = visited[i]
+                q[j // 4, j % 4] += alpha * delta * e[j // 4, j % 4]
+                e[j // 4, j % 4] *= lam
+            if term:
+                break
+            s, a = s2, a2
+        for i in range(nv):
+            j = visited[i]
+            e[j // 4, j % 4] = 0.0
+    return steps
+
+
+def reference_steps_per_second(n_steps: int) -> float:
+    lay = load_layout("lau2002")
+    walls = np.ascontiguousarray(lay.walls)
+    starts = lay.free_positions(include_goal=False)
+    _reference_run(1000, 0, walls, starts, lay.goal[0], lay.goal[1])
+    best = 0.0
+    for rep in range(3):
+        t = time.perf_counter()
+        s = _reference_run(n_steps, rep, walls, starts, lay.goal[0], lay.goal[1])
+        best = max(best, s / (time.perf_counter() - t))
+    return best
+
+
+def avq_fused_steps_per_second(name: str, episodes: int) -> tuple[float, int]:
+    """Training throughput on the fused path, after a warm-up that also grows the codebook."""
+    best = 0.0
+    for rep in range(3):
+        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep)
+        agent.learn(total_episodes=20)
+        t = time.perf_counter()
+        before = agent.num_timesteps
+        agent.learn(total_episodes=episodes)
+        best = max(best, (agent.num_timesteps - before) / (time.perf_counter() - t))
+    return best, agent.n_cells
+
+
+def env_only_steps_per_second(env_id: str, n_steps: int) -> float:
+    env = gym.make(env_id)
+    actions = np.random.default_rng(0).integers(env.action_space.n, size=n_steps)
+    env.reset(seed=0)
+    t = time.perf_counter()
+    for a in actions:
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    return n_steps / (time.perf_counter() - t)
+
+
+def generic_steps_per_second(name: str, env_id: str, n_steps: int) -> float:
+    agent = avq.make_agent(name, gym.make(env_id), seed=0)
+    agent.learn(total_timesteps=2000)
+    t = time.perf_counter()
+    agent.learn(total_timesteps=n_steps)
+    return n_steps / (time.perf_counter() - t)
+
+
+@njit(cache=True)
+def _nearest_loop(vectors, size, queries, inv_scale):
+    s = 0
+    for k in range(queries.shape[0]):
+        i, _ = nearest_index(vectors, size, queries[k], inv_scale)
+        s += i
+    return s
+
+
+def nearest_table(sizes=(20, 100, 1000, 5000, 20000), n_queries=20000) -> list[tuple[int, float, float]]:
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(0)
+    rows = []
+    inv = np.ones(2)
+    queries = rng.random((n_queries, 2))
+    for p in sizes:
+        vectors = rng.random((p, 2))
+        _nearest_loop(vectors, p, queries[:10], inv)
+        t = time.perf_counter()
+        _nearest_loop(vectors, p, queries, inv)
+        brute = (time.perf_counter() - t) / n_queries * 1e6
+        tree = cKDTree(vectors)
+        t = time.perf_counter()
+        tree.query(queries, k=1)
+        kd = (time.perf_counter() - t) / n_queries * 1e6
+        rows.append((p, brute, kd))
+    return rows
+
+
+def timed_command(args: list[str], env: dict | None = None) -> float:
+    t = time.perf_counter()
+    subprocess.run(args, check=True, capture_output=True, env=env)
+    return time.perf_counter() - t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    scale = 0.2 if args.quick else 1.0
+    print(f"machine: {os.cpu_count()} cores; numpy {np.__version__}; avq {avq.__version__}")
+    ref = reference_steps_per_second(int(5_000_000 * scale))
+    print(f"\n1. fused training on GridMaze lau2002 (reference: Numba tabular Sarsa(λ), {ref / 1e6:.2f} M steps/s)")
+    print(f"   {'agent':<10} {'M steps/s':>10} {'of reference':>13} {'cells':>6}")
+    for name in ("avq-paper", "avq"):
+        sps, cells = avq_fused_steps_per_second(name, int(3000 * scale) or 100)
+        print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
+
+    print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")
+    print(f"   {'env':<16} {'agent':<10} {'k steps/s':>10} {'env only':>10} {'ratio':>6}")
+    n = int(100_000 * scale)
+    for env_id, name in (("MountainCar-v0", "avq"), ("MountainCar-v0", "tiles"), ("MountainCar-v0", "grid"),
+                         ("avq/RobotMaze-v0", "avq")):
+        base = env_only_steps_per_second(env_id, n)
+        sps = generic_steps_per_second(name, env_id, n)
+        print(f"   {env_id:<16} {name:<10} {sps / 1e3:>10.1f} {base / 1e3:>10.1f} {sps / base:>6.0%}")
+
+    print("\n3. nearest vector, µs per query (2-D): brute force in a compiled loop vs k-d tree batch query")
+    print(f"   {'vectors':>8} {'brute':>8} {'k-d tree':>9}")
+    for p, brute, kd in nearest_table():
+        print(f"   {p:>8} {brute:>8.3f} {kd:>9.3f}")
+
+    if args.quick:
+        return
+    avq_bin = os.path.join(os.path.dirname(sys.executable), "avq")
+    with tempfile.TemporaryDirectory() as tmp:
+        timed_command([avq_bin, "reproduce", "--out", os.path.join(tmp, "warm"), "--no-progress"])
+        warm = min(timed_command([avq_bin, "reproduce", "--out", os.path.join(tmp, f"r{k}"), "--no-progress"])
+                   for k in range(2))
+        print(f"\n4. avq reproduce (defaults), process start to files written, warm cache: {warm:.1f} s")
+        cold_env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "numba-cache"))
+        probe = [sys.executable, "-c",
+                 "import gymnasium as gym, avq; avq.make_agent('avq-paper', gym.make('avq/GridMaze-v0'), seed=0)"
+                 ".learn(total_episodes=5)"]
+        cold = timed_command(probe, cold_env)
+        cached = timed_command(probe, cold_env)
+        print(f"5. start-up (import, make, 5 episodes): empty compilation cache {cold:.1f} s, cached {cached:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
