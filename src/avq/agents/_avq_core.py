@@ -106,9 +106,12 @@ def _may_append(dist_nearest: float, P, IP, S) -> bool:
 def _append(V, Q, E, born, S, x, parent: int) -> int:
     """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
     c = S[SIZE]
-    V[c, :] = x
-    Q[c, :] = Q[parent, :]
-    E[c, :] = 0.0
+    # Element loops, not slices: slice assignment drags shape-error formatting into the hot path.
+    for d in range(x.shape[0]):
+        V[c, d] = x[d]
+    for b in range(Q.shape[1]):
+        Q[c, b] = Q[parent, b]
+        E[c, b] = 0.0
     born[c] = S[EPISODES] + 1
     S[SIZE] = c + 1
     S[APPENDS] += 1
@@ -121,14 +124,17 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
     if S[SIZE] == 0:
         # SPEC §3: the codebook starts with the very first observation.
-        V[0, :] = x
-        Q[0, :] = P[QINIT]
-        E[0, :] = 0.0
+        for d in range(x.shape[0]):
+            V[0, d] = x[d]
+        for b in range(Q.shape[1]):
+            Q[0, b] = P[QINIT]
+            E[0, b] = 0.0
         born[0] = 0
         S[SIZE] = 1
         S[GEOM] += 1
     for k in range(1, act[0] + 1):
-        E[act[k], :] = 0.0
+        for b in range(E.shape[1]):
+            E[act[k], b] = 0.0
     act[0] = 0
     S[EP_STEPS] = 0
     S[APPENDS] = 0
