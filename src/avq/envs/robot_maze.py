@@ -115,6 +115,7 @@ def disc_collides(grid: np.ndarray, x: float, y: float, radius: float) -> bool:
     return False
 
 
+@njit(cache=True, inline="always")
 def in_goal(x: float, y: float, gx: float, gy: float) -> bool:
     """Whether the centre ``(x, y)`` lies in the closed goal square centred at ``(gx, gy)``."""
     return abs(x - gx) <= 0.5 + EPS and abs(y - gy) <= 0.5 + EPS
@@ -201,6 +202,42 @@ def sonar_ranges(
         r = cast_ray(grid, x, y, dirs[k, 0], dirs[k, 1], t_max) - radius
         out[k] = 0.0 if r < 0.0 else min(r, max_range)
     return out
+
+
+@njit(cache=True, inline="always")
+def robot_move(grid: np.ndarray, x: float, y: float, a: int, move: float, radius: float, gx: float, gy: float):
+    """One move of the robot: ``(x, y, reward, terminated, collision)`` afterwards.
+
+    A move that would make the disc overlap a wall or leave the maze is a collision:
+    the robot stays where it was, reward -10. Otherwise it moves, reward -1, or +10
+    and the episode ends when its centre enters the goal square.
+    """
+    nx, ny = x, y
+    if a == 0:
+        ny = y + -move
+    elif a == 1:
+        nx = x + move
+    elif a == 2:
+        ny = y + move
+    else:
+        nx = x + -move
+    if disc_collides(grid, nx, ny, radius):
+        return x, y, BUMP_REWARD, False, True
+    if in_goal(nx, ny, gx, gy):
+        return nx, ny, GOAL_REWARD, True, False
+    return nx, ny, MOVE_REWARD, False, False
+
+
+@njit(cache=True)
+def random_start(rng, starts: np.ndarray, grid: np.ndarray, radius: float, gx: float, gy: float):
+    """A uniform free non-goal square, then a uniform position in it where the disc fits."""
+    k = rng.integers(0, starts.shape[0])
+    cx, cy = starts[k, 0], starts[k, 1]
+    while True:
+        u = rng.uniform(-0.5, 0.5, 2)
+        x, y = cx + u[0], cy + u[1]
+        if not disc_collides(grid, x, y, radius) and not in_goal(x, y, gx, gy):
+            return x, y
 
 
 @njit(cache=True)
@@ -380,8 +417,6 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         self._starts = self.layout.free_positions(include_goal=False)
         self._dist = self.layout.distances
         self._gx, self._gy = (float(v) for v in self.layout.goal)
-        self._dx = (0.0, move, 0.0, -move)
-        self._dy = (-move, 0.0, move, 0.0)
         self._x, self._y = 0.0, 0.0
         self._steps = 0
         self._sonar = np.zeros(N_SONARS, dtype=np.float64)
@@ -411,19 +446,9 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
             a = int(action)
         if not 0 <= a < 4:
             raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
-        x = self._x + self._dx[a]
-        y = self._y + self._dy[a]
         self._steps += 1
-        terminated = False
-        if disc_collides(self._grid, x, y, self.radius):
-            reward, collision = BUMP_REWARD, True  # the robot stays where it was
-        else:
-            self._x, self._y = x, y
-            collision = False
-            if in_goal(x, y, self._gx, self._gy):
-                reward, terminated = GOAL_REWARD, True
-            else:
-                reward = MOVE_REWARD
+        self._x, self._y, reward, terminated, collision = robot_move(
+            self._grid, self._x, self._y, a, self.move, self.radius, self._gx, self._gy)
         truncated = self._steps >= self.max_steps
         self._sense()
         return self._obs(), reward, terminated, truncated, self._info(collision)
@@ -491,12 +516,7 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         return self._sonar.astype(np.float32)
 
     def _random_start(self) -> tuple[float, float]:
-        cx, cy = self._starts[self.np_random.integers(len(self._starts))]
-        while True:
-            x, y = self.np_random.uniform(-0.5, 0.5, size=2)
-            x, y = float(cx + x), float(cy + y)
-            if not disc_collides(self._grid, x, y, self.radius) and not in_goal(x, y, self._gx, self._gy):
-                return x, y
+        return random_start(self.np_random, self._starts, self._grid, self.radius, self._gx, self._gy)
 
     def _checked_position(self, pos: Any, what: str, allow_goal: bool) -> tuple[float, float]:
         try:
