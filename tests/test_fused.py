@@ -64,3 +64,19 @@ def test_other_wrappers_fall_back_to_the_generic_path():
     agent.learn(total_episodes=3)
     assert len(env.return_queue) == 3  # the wrapper saw every episode
     assert avq.make_agent("avq-paper", gym.make("avq/GridMaze-v0"), seed=0)._fused_runner() is not None
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"observe_sonar": True}, {"start": "fixed", "move": 0.5}])
+@pytest.mark.parametrize("name", ["avq-paper", "avq"])
+def test_fused_robot_maze_is_identical_to_the_generic_path(name, kwargs):
+    runs = []
+    for fused in (True, False):
+        agent = avq.make_agent(name, gym.make("avq/RobotMaze-v0", **kwargs), seed=3, fused=fused)
+        runs.append(agent.learn(total_episodes=25))
+    same(*runs)
+
+
+def test_noisy_sonar_uses_the_generic_path():
+    agent = avq.make_agent("avq", gym.make("avq/RobotMaze-v0", sonar_noise=0.1), seed=0)
+    assert agent._fused_runner() is None
+    assert avq.make_agent("avq", gym.make("avq/RobotMaze-v0"), seed=0)._fused_runner() is not None

@@ -15,9 +15,10 @@ from numba import njit
 from avq._kernels import nearest_index
 from avq.agents._avq_core import (
     ACTION, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
-    begin_episode, end_episode, epsilon_greedy_rng, learn, observe_at,
+    begin_episode, end_episode, epsilon_greedy_rng, learn, observe, observe_at,
 )
 from avq.envs.grid_maze import grid_move
+from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
 
 
 @njit(cache=True)
@@ -91,3 +92,68 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
         if done:
             end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
             episodes += 1
+
+
+@njit(cache=True)
+def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
+                   grid, gx, gy, starts, fixed, move, radius, dirs, sonar_range, observe_sonar,
+                   max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Train on a RobotMaze (noise-free sonar) like :func:`run_grid_maze`.
+
+    ``pos`` holds the robot's ``x, y`` and the steps of the current episode (as a float).
+    Observations are rounded to float32 as the environment's are.
+    """
+    cap = V.shape[0]
+    steps = 0
+    episodes = 0
+    x = np.empty(V.shape[1])
+    sonar = np.empty(dirs.shape[0])
+    while True:
+        if S[IN_EPISODE] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            if S[SIZE] + 1 > cap:
+                return steps, episodes, NEED_CAPACITY
+            if fixed[0] == fixed[0]:  # not NaN: fixed start
+                pos[0] = fixed[0]
+                pos[1] = fixed[1]
+            else:
+                pos[0], pos[1] = random_start(env_rng, starts, grid, radius, gx, gy)
+            pos[2] = 0.0
+            _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar)
+            cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
+            S[ACTION] = epsilon_greedy_rng(Q[cell], P[EPS], rng)
+        if steps >= budget_steps:
+            return steps, episodes, DONE
+        if S[SIZE] + 3 > cap:
+            return steps, episodes, NEED_CAPACITY
+        a = S[ACTION]
+        pos[2] += 1.0
+        pos[0], pos[1], r, terminated, collision = robot_move(grid, pos[0], pos[1], a, move, radius, gx, gy)
+        truncated = pos[2] >= max_episode_steps
+        _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar)
+        steps += 1
+        done = terminated or truncated
+        j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r, collision, done)
+        if j < 0:
+            continue
+        a_next = a
+        if not terminated:
+            a_next = epsilon_greedy_rng(Q[j], P[EPS], rng)
+        learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
+        if done:
+            end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
+            episodes += 1
+
+
+@njit(cache=True, inline="always")
+def _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar):
+    """The RobotMaze observation as the agent sees it: float32 values, as float64."""
+    x[0] = np.float64(np.float32(pos[0]))
+    x[1] = np.float64(np.float32(pos[1]))
+    if observe_sonar:
+        sonar_ranges(grid, pos[0], pos[1], radius, dirs, sonar_range, sonar)
+        for k in range(sonar.shape[0]):
+            x[2 + k] = np.float64(np.float32(sonar[k]))

@@ -59,8 +59,9 @@ class AVQSarsa(BaseAgent):
             dimensions such as CartPole's velocities.
         max_cells: Upper bound on the codebook size; at the bound, appends are refused
             (counted in the episode record as ``refused``).
-        fused: On ``avq/GridMaze-v0`` (as made by ``gymnasium.make``, with its standard
-            wrappers), run the maze's dynamics and the agent in one compiled loop.
+        fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (as
+            made by ``gymnasium.make``, with its standard wrappers), run the maze's
+            dynamics and the agent in one compiled loop.
             Same results as stepping the environment from Python, much faster; the
             environment object is brought up to date after every ``learn`` call.
             False always steps the environment from Python.
@@ -258,41 +259,67 @@ class AVQSarsa(BaseAgent):
     def _fused_runner(self):
         if not self.fused:
             return None
-        plan = _grid_maze_plan(self.env)
+        plan = _fused_plan(self.env)
         if plan is None:
             return None
         base, time_limit, order = plan
+        from avq.agents import _fused
+        from avq.envs.grid_maze import GridMaze
+
         layout = base.layout
-        walls = np.ascontiguousarray(layout.walls)
-        starts = np.ascontiguousarray(base._starts, dtype=np.int64)
-        fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
-        max_steps = time_limit._max_episode_steps if time_limit is not None else 1 << 62
+        limit = time_limit._max_episode_steps if time_limit is not None else 1 << 62
+        if isinstance(base, GridMaze):
+            walls = np.ascontiguousarray(layout.walls)
+            starts = np.ascontiguousarray(base._starts, dtype=np.int64)
+            fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
+
+            def get_pos():
+                elapsed = time_limit._elapsed_steps if time_limit is not None else 0
+                return np.array([base._x, base._y, elapsed], dtype=np.int64)
+
+            def set_pos(pos):
+                base._x, base._y = int(pos[0]), int(pos[1])
+                return int(pos[2])
+
+            def kernel(pos, budget_steps, budget_episodes, rec):
+                return _fused.run_grid_maze(
+                    *self._state(), self._rng, base.np_random, walls, layout.goal[0], layout.goal[1], starts,
+                    fixed, limit, pos, budget_steps, budget_episodes, rec)
+        else:  # RobotMaze with noise-free sonar
+            starts = np.ascontiguousarray(base._starts, dtype=np.int64)
+            fixed = np.array([float(v) for v in layout.start] if base.start == "fixed" else [np.nan, np.nan])
+            limit = min(limit, base.max_steps)
+
+            def get_pos():
+                return np.array([base._x, base._y, float(base._steps)])
+
+            def set_pos(pos):
+                base._x, base._y, base._steps = float(pos[0]), float(pos[1]), int(pos[2])
+                base._sense()
+                return int(pos[2])
+
+            def kernel(pos, budget_steps, budget_episodes, rec):
+                return _fused.run_robot_maze(
+                    *self._state(), self._rng, base.np_random, base._grid, base._gx, base._gy, starts, fixed,
+                    base.move, base.radius, base._dirs, base.sonar_range, base.observe_sonar, float(limit), pos,
+                    budget_steps, budget_episodes, rec)
 
         def run(max_steps_budget: int, max_episodes: int, max_records: int):
-            from avq.agents._fused import run_grid_maze
-
-            pos = np.array([base._x, base._y, time_limit._elapsed_steps if time_limit is not None else 0],
-                           dtype=np.int64)
+            pos = get_pos()
             rec = np.zeros((max_records, core.N_R))
             records: list[EpisodeRecord] = []
             steps = 0
             while True:
-                n, eps, status = run_grid_maze(
-                    *self._state(), self._rng, base.np_random, walls, layout.goal[0], layout.goal[1], starts,
-                    fixed, max_steps, pos, max_steps_budget - steps, min(max_episodes - len(records), max_records),
-                    rec)
+                n, eps, status = kernel(pos, max_steps_budget - steps, min(max_episodes - len(records), max_records), rec)
                 steps += n
                 records.extend(_record(rec[k]) for k in range(eps))
-                if status == core.NEED_CAPACITY:
-                    self._ensure_capacity(4)
-                    continue
-                if status == core.RECORDS_FULL or max_records <= len(records):
+                if status != core.NEED_CAPACITY:
                     break
-                break
+                self._ensure_capacity(4)
             # Bring the environment object up to date, so that stepping it from Python continues here.
-            base._x, base._y = int(pos[0]), int(pos[1])
+            elapsed = set_pos(pos)
             if time_limit is not None:
-                time_limit._elapsed_steps = int(pos[2])
+                time_limit._elapsed_steps = elapsed
             if order is not None:
                 order._has_reset = True
             return steps, records, bool(self._S[core.IN_EPISODE])
@@ -355,12 +382,13 @@ def _record(rec: np.ndarray) -> EpisodeRecord:
     }
 
 
-def _grid_maze_plan(env: gym.Env):
-    """``(GridMaze, TimeLimit or None, OrderEnforcing or None)`` if ``env`` is a GridMaze under
-    only Gymnasium's standard wrappers, else None."""
+def _fused_plan(env: gym.Env):
+    """``(maze, TimeLimit or None, OrderEnforcing or None)`` if ``env`` is a GridMaze, or a RobotMaze
+    with noise-free sonar, under only Gymnasium's standard wrappers; else None."""
     from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
     from avq.envs.grid_maze import GridMaze
+    from avq.envs.robot_maze import RobotMaze
 
     time_limit = order = None
     e = env
@@ -372,6 +400,6 @@ def _grid_maze_plan(env: gym.Env):
         elif not isinstance(e, PassiveEnvChecker):
             return None
         e = e.env
-    if type(e) is not GridMaze:
-        return None
-    return e, time_limit, order
+    if type(e) is GridMaze or (type(e) is RobotMaze and e.sonar_noise == 0.0):
+        return e, time_limit, order
+    return None
