@@ -80,3 +80,16 @@ def test_noisy_sonar_uses_the_generic_path():
     agent = avq.make_agent("avq", gym.make("avq/RobotMaze-v0", sonar_noise=0.1), seed=0)
     assert agent._fused_runner() is None
     assert avq.make_agent("avq", gym.make("avq/RobotMaze-v0"), seed=0)._fused_runner() is not None
+
+
+@pytest.mark.parametrize("start", ["random", "fixed"])
+def test_fused_tabular_grid_maze_is_identical_to_the_generic_path(start):
+    runs = []
+    for fused in (True, False):
+        agent = avq.make_agent("tabular", gym.make("avq/GridMaze-v0", start=start), seed=8, fused=fused)
+        agent.learn(total_episodes=150).learn(total_timesteps=321).learn(total_episodes=50)
+        runs.append(agent)
+    a, b = runs
+    assert np.array_equal(a.states_, b.states_) and np.array_equal(a.q_, b.q_)
+    for key in ("steps", "return", "n_cells", "appends"):
+        assert np.array_equal(a.episode_history()[key], b.episode_history()[key])

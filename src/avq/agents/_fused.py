@@ -157,3 +157,94 @@ def _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar):
         sonar_ranges(grid, pos[0], pos[1], radius, dirs, sonar_range, sonar)
         for k in range(sonar.shape[0]):
             x[2 + k] = np.float64(np.float32(sonar[k]))
+
+
+@njit(cache=True, inline="always")
+def _table_row(row_of, keys, T, x, y):
+    """The table row of position (x, y), created (in order of first visit) when new."""
+    r = row_of[y, x]
+    if r < 0:
+        r = T[0]
+        row_of[y, x] = r
+        keys[r, 0] = x
+        keys[r, 1] = y
+        T[0] += 1
+        T[4] += 1
+    return r
+
+
+@njit(cache=True)
+def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
+                          walls, gx, gy, starts, fixed, max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Tabular Sarsa(λ) on a GridMaze, the same computation as ``TabularSarsa`` stepping the env.
+
+    ``T``: rows in use, current row, current action, episode steps, rows added this
+    episode, in-episode flag; ``TF[0]``: episode return. ``q`` and ``e`` must have a
+    row for every position. Returns ``(steps, episodes)``.
+    """
+    steps = 0
+    episodes = 0
+    decay = gamma * lam
+    m = q.shape[1]
+    while True:
+        if T[5] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes or episodes >= rec.shape[0]:
+                return steps, episodes
+            if fixed[0] >= 0:
+                pos[0] = fixed[0]
+                pos[1] = fixed[1]
+            else:
+                k = env_rng.integers(0, starts.shape[0])
+                pos[0] = starts[k, 0]
+                pos[1] = starts[k, 1]
+            pos[2] = 0
+            for r in range(T[0]):
+                for b in range(m):
+                    e[r, b] = 0.0
+            T[3] = 0
+            T[4] = 0
+            TF[0] = 0.0
+            s = _table_row(row_of, keys, T, pos[0], pos[1])
+            T[1] = s
+            T[2] = epsilon_greedy_rng(q[s], epsilon, rng)
+            T[5] = 1
+        if steps >= budget_steps:
+            return steps, episodes
+        s = T[1]
+        a = T[2]
+        nx, ny, rew, terminated, _ = grid_move(walls, pos[0], pos[1], a, gx, gy)
+        pos[0] = nx
+        pos[1] = ny
+        pos[2] += 1
+        truncated = pos[2] >= max_episode_steps
+        steps += 1
+        T[3] += 1
+        TF[0] += rew
+        s2 = _table_row(row_of, keys, T, nx, ny)
+        if terminated:
+            a2 = a
+            delta = rew - q[s, a]
+        else:
+            a2 = epsilon_greedy_rng(q[s2], epsilon, rng)
+            delta = rew + gamma * q[s2, a2] - q[s, a]
+        if replacing:
+            e[s, a] = 1.0
+        else:
+            e[s, a] += 1.0
+        step = alpha * delta
+        for r in range(T[0]):
+            for b in range(m):
+                q[r, b] += step * e[r, b]
+                e[r, b] *= decay
+        T[1] = s2
+        T[2] = a2
+        if terminated or truncated:
+            T[5] = 0
+            rec[episodes, 0] = T[3]
+            rec[episodes, 1] = TF[0]
+            rec[episodes, 2] = T[0]
+            rec[episodes, 3] = T[4]
+            rec[episodes, 4] = 0
+            rec[episodes, 5] = 0
+            rec[episodes, 6] = T[3]
+            episodes += 1

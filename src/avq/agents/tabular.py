@@ -30,6 +30,8 @@ class TabularSarsa(BaseAgent):
         q_init: Initial action value.
         traces: ``"replacing"`` or ``"accumulating"``.
         max_states: Upper bound on the number of rows; an observation beyond it is an error.
+        fused: On ``avq/GridMaze-v0`` (standard wrappers only), run the maze and the
+            agent in one compiled loop; same results as stepping the env from Python.
         seed: Seed of every random choice the agent makes and of the env's first reset.
 
     Attributes:
@@ -49,10 +51,14 @@ class TabularSarsa(BaseAgent):
         q_init: float = 0.0,
         traces: str = "replacing",
         max_states: int = 1_000_000,
+        fused: bool = True,
         seed: int | None = None,
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.max_states = check_int("max_states", max_states, 1)
+        if not isinstance(fused, (bool, np.bool_)):
+            raise ValueError(f"fused must be True or False, not {fused!r}")
+        self.fused = bool(fused)
         super().__init__(env, seed)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -163,6 +169,63 @@ class TabularSarsa(BaseAgent):
             "refused": 0,
             "decisions": self._ep_steps,
         }
+
+    def _fused_runner(self):
+        from avq.agents.avq_sarsa import _fused_plan
+        from avq.envs.grid_maze import GridMaze
+
+        plan = _fused_plan(self.env) if self.fused else None
+        if plan is None or not isinstance(plan[0], GridMaze) or self._discrete:
+            return None
+        base, time_limit, order = plan
+        layout = base.layout
+        h, w = layout.height, layout.width
+        walls = np.ascontiguousarray(layout.walls)
+        starts = np.ascontiguousarray(base._starts, dtype=np.int64)
+        fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
+        limit = time_limit._max_episode_steps if time_limit is not None else 1 << 62
+
+        def run(max_steps_budget: int, max_episodes: int, max_records: int):
+            from avq.agents._fused import run_tabular_grid_maze
+
+            while self._q.shape[0] < h * w:  # a row for every position, as _row would grow it
+                cap = self._q.shape[0]
+                self._q = np.concatenate([self._q, np.full((cap, self.n_actions), self.q_init)])
+                self._e = np.concatenate([self._e, np.zeros((cap, self.n_actions))])
+            row_of = np.full((h, w), -1, dtype=np.int64)
+            keys = np.zeros((h * w, 2), dtype=np.int64)
+            for key, row in self._index.items():
+                row_of[int(key[1]), int(key[0])] = row
+                keys[row] = int(key[0]), int(key[1])
+            T = np.array([self._n, self._ep_state, self._ep_action, self._ep_steps, self._ep_new,
+                          int(self._in_episode)], dtype=np.int64)
+            TF = np.array([self._ep_return])
+            elapsed = time_limit._elapsed_steps if time_limit is not None else 0
+            pos = np.array([base._x, base._y, elapsed], dtype=np.int64)
+            rec = np.zeros((max_records, 7))
+            steps, episodes = run_tabular_grid_maze(
+                self._q, self._e, row_of, keys, T, TF, self.alpha, self.gamma, self.lam, self.epsilon,
+                self.traces == "replacing", self._rng, base.np_random, walls, layout.goal[0], layout.goal[1],
+                starts, fixed, limit, pos, max_steps_budget, min(max_episodes, max_records), rec)
+            for row in range(self._n, int(T[0])):
+                key = (float(keys[row, 0]), float(keys[row, 1]))
+                self._index[key] = row
+                self._keys.append(key)
+            self._n, self._ep_state, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:5])
+            self._ep_return = float(TF[0])
+            base._x, base._y = int(pos[0]), int(pos[1])
+            if time_limit is not None:
+                time_limit._elapsed_steps = int(pos[2])
+            if order is not None:
+                order._has_reset = True
+            keys_out = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
+            records = [
+                {k: (float(v) if k == "return" else int(v)) for k, v in zip(keys_out, rec[i])}
+                for i in range(episodes)
+            ]
+            return steps, records, bool(T[5])
+
+        return run
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         out = np.zeros(len(obs), dtype=np.int64)
