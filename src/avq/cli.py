@@ -170,7 +170,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--agents", default="avq-paper,tabular", help="comma-separated agent names")
     rep.add_argument("--start", choices=["random", "fixed"], default="random", help="start positions (default random)")
     rep.add_argument("--out", default="reproduce-out", help="output directory (default reproduce-out)")
-    rep.add_argument("--jobs", type=_positive_int("--jobs"), default=None, help="parallel processes (default: cores)")
+    rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,
+                     help="parallel processes (default 1: the compiled loops make one process fastest here)")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rep.set_defaults(func=_cmd_reproduce)
 
