@@ -54,7 +54,7 @@ N_R = 7
 DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray) -> float:
     s = 0.0
     for d in range(x.shape[0]):
@@ -63,7 +63,7 @@ def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray)
     return np.sqrt(s)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def epsilon_greedy_rng(q_row: np.ndarray, epsilon: float, rng) -> int:
     """Compiled twin of :func:`avq.agents._td.epsilon_greedy`: the same draws, in the same order."""
     m = q_row.shape[0]
@@ -91,7 +91,7 @@ def epsilon_greedy_rng(q_row: np.ndarray, epsilon: float, rng) -> int:
     return first
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _may_append(dist_nearest: float, P, IP, S) -> bool:
     """SPEC §3: never within d_min of an existing vector; never beyond max_cells (counted)."""
     if not may_append(dist_nearest, P[DMIN]):
@@ -102,7 +102,7 @@ def _may_append(dist_nearest: float, P, IP, S) -> bool:
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _append(V, Q, E, born, S, x, parent: int) -> int:
     """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
     c = S[SIZE]
@@ -162,7 +162,7 @@ def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collisi
     return observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, np.sqrt(d2))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, dist_j) -> int:
     """:func:`observe` with the nearest vector ``j`` of ``x`` and its distance already known."""
     i = S[CELL]
@@ -190,7 +190,7 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
     return j
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
     """SPEC §5: the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
 
