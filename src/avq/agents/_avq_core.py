@@ -11,7 +11,7 @@ One implementation of the agent's rules serves both paths:
 The random stream is the agent's ``numpy.random.Generator``: the generic path
 draws in Python (:func:`avq.agents._td.epsilon_greedy`), the fused path draws
 from the very same generator inside the compiled loop
-(:func:`epsilon_greedy_rng`), and both make the same calls in the same order,
+(the loop draws from it directly), and both make the same calls in the same order,
 so both paths give identical results.
 
 State lives in preallocated arrays: ``V`` codebook ``(cap, n)``, ``Q`` and ``E``
@@ -64,31 +64,41 @@ def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray)
 
 
 @njit(cache=True)
-def epsilon_greedy_rng(q_row: np.ndarray, epsilon: float, rng) -> int:
-    """Compiled twin of :func:`avq.agents._td.epsilon_greedy`: the same draws, in the same order."""
-    m = q_row.shape[0]
-    if rng.random() < epsilon:
-        return int(rng.integers(0, m))
-    best = q_row[0]
+def greedy_ties(Q: np.ndarray, row: int) -> tuple[int, int]:
+    """The first best action of ``Q[row]`` and how many actions share that value."""
+    m = Q.shape[1]
+    best = Q[row, 0]
     for k in range(1, m):
-        if q_row[k] > best:
-            best = q_row[k]
+        if Q[row, k] > best:
+            best = Q[row, k]
+    first = -1
     n_ties = 0
-    first = 0
     for k in range(m):
-        if q_row[k] == best:
+        if Q[row, k] == best:
             if n_ties == 0:
                 first = k
             n_ties += 1
-    if n_ties == 1:
-        return first
-    pick = int(rng.integers(0, n_ties))
-    for k in range(m):
-        if q_row[k] == best:
+    return first, n_ties
+
+
+@njit(cache=True)
+def nth_tie(Q: np.ndarray, row: int, pick: int) -> int:
+    """The ``pick``-th (from 0, in index order) of the actions sharing ``Q[row]``'s maximum."""
+    first, _ = greedy_ties(Q, row)
+    best = Q[row, first]
+    for k in range(Q.shape[1]):
+        if Q[row, k] == best:
             if pick == 0:
                 return k
             pick -= 1
     return first
+
+
+# The compiled twin of avq.agents._td.epsilon_greedy, written out where it is used so that the
+# generator is never passed to another compiled function (each pass boxes it: ~0.2 µs):
+#     if rng.random() < epsilon: a = rng.integers(0, m)
+#     else: a, n = greedy_ties(Q, j); if n > 1: a = nth_tie(Q, j, rng.integers(0, n))
+# The same draws, in the same order, as the Python version.
 
 
 @njit(cache=True)

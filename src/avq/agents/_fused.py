@@ -15,7 +15,7 @@ from numba import njit
 from avq._kernels import nearest_index
 from avq.agents._avq_core import (
     ACTION, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
-    begin_episode, end_episode, epsilon_greedy_rng, learn, observe, observe_at,
+    begin_episode, end_episode, greedy_ties, learn, nth_tie, observe, observe_at,
 )
 from avq.envs.grid_maze import grid_move
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
@@ -59,7 +59,11 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
             x[0] = pos[0]
             x[1] = pos[1]
             cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
-            S[ACTION] = epsilon_greedy_rng(Q[cell], P[EPS], rng)
+            if rng.random() < P[EPS]:
+                S[ACTION] = rng.integers(0, Q.shape[1])
+            else:
+                b, n_ties = greedy_ties(Q, cell)
+                S[ACTION] = b if n_ties == 1 else nth_tie(Q, cell, rng.integers(0, n_ties))
         if steps >= budget_steps:
             return steps, episodes, DONE
         if S[SIZE] + 3 > cap:
@@ -87,7 +91,12 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
             continue
         a_next = a
         if not terminated:
-            a_next = epsilon_greedy_rng(Q[j], P[EPS], rng)
+            if rng.random() < P[EPS]:
+                a_next = rng.integers(0, Q.shape[1])
+            else:
+                a_next, n_ties = greedy_ties(Q, j)
+                if n_ties > 1:
+                    a_next = nth_tie(Q, j, rng.integers(0, n_ties))
         learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
         if done:
             end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
@@ -124,7 +133,11 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
             pos[2] = 0.0
             _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar)
             cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
-            S[ACTION] = epsilon_greedy_rng(Q[cell], P[EPS], rng)
+            if rng.random() < P[EPS]:
+                S[ACTION] = rng.integers(0, Q.shape[1])
+            else:
+                b, n_ties = greedy_ties(Q, cell)
+                S[ACTION] = b if n_ties == 1 else nth_tie(Q, cell, rng.integers(0, n_ties))
         if steps >= budget_steps:
             return steps, episodes, DONE
         if S[SIZE] + 3 > cap:
@@ -141,7 +154,12 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
             continue
         a_next = a
         if not terminated:
-            a_next = epsilon_greedy_rng(Q[j], P[EPS], rng)
+            if rng.random() < P[EPS]:
+                a_next = rng.integers(0, Q.shape[1])
+            else:
+                a_next, n_ties = greedy_ties(Q, j)
+                if n_ties > 1:
+                    a_next = nth_tie(Q, j, rng.integers(0, n_ties))
         learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
         if done:
             end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
@@ -206,7 +224,11 @@ def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon,
             TF[0] = 0.0
             s = _table_row(row_of, keys, T, pos[0], pos[1])
             T[1] = s
-            T[2] = epsilon_greedy_rng(q[s], epsilon, rng)
+            if rng.random() < epsilon:
+                T[2] = rng.integers(0, m)
+            else:
+                b, n_ties = greedy_ties(q, s)
+                T[2] = b if n_ties == 1 else nth_tie(q, s, rng.integers(0, n_ties))
             T[5] = 1
         if steps >= budget_steps:
             return steps, episodes
@@ -225,7 +247,12 @@ def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon,
             a2 = a
             delta = rew - q[s, a]
         else:
-            a2 = epsilon_greedy_rng(q[s2], epsilon, rng)
+            if rng.random() < epsilon:
+                a2 = rng.integers(0, m)
+            else:
+                a2, n_ties = greedy_ties(q, s2)
+                if n_ties > 1:
+                    a2 = nth_tie(q, s2, rng.integers(0, n_ties))
             delta = rew + gamma * q[s2, a2] - q[s, a]
         if replacing:
             e[s, a] = 1.0
