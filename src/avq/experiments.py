@@ -94,8 +94,6 @@ def reproduce(
 
     Returns the summary (the content of ``summary.json``).
     """
-    from joblib import Parallel, delayed
-
     lay = load_layout(layout)  # fail early on a bad layout
     for name in agents:
         if name not in AGENTS:
@@ -113,14 +111,16 @@ def reproduce(
     layout_arg: LayoutSpec = list(lay.rows)
     jobs = [(name, int(seed)) for name in agents for seed in seeds]
     n_jobs = n_jobs or min(len(jobs), os.cpu_count() or 1)
-    tasks = (
-        delayed(train_maze_run)(name, layout_arg, seed, trials, start, str(out / "models" / f"{name}__seed{seed}.zip"))
-        for name, seed in jobs
-    )
+    args = [(name, layout_arg, seed, trials, start, str(out / "models" / f"{name}__seed{seed}.zip"))
+            for name, seed in jobs]
     t0 = time.perf_counter()
     results: list[ReproduceRun] = []
-    runner = Parallel(n_jobs=n_jobs, return_as="generator")
-    stream = runner(tasks)
+    if n_jobs == 1:
+        stream = (train_maze_run(*a) for a in args)
+    else:
+        from joblib import Parallel, delayed
+
+        stream = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(train_maze_run)(*a) for a in args)
     if progress:
         from tqdm.auto import tqdm
 

@@ -55,9 +55,9 @@ def mean_ci95(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = rows.shape[0]
     if n < 2:
         return mean, np.zeros_like(mean)
-    from scipy.stats import t
+    from scipy.special import stdtrit  # Student's t quantile; far lighter to import than scipy.stats
 
-    half = t.ppf(0.975, n - 1) * rows.std(axis=0, ddof=1) / np.sqrt(n)
+    half = stdtrit(n - 1, 0.975) * rows.std(axis=0, ddof=1) / np.sqrt(n)
     return mean, half
 
 
