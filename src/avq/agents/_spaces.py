@@ -7,7 +7,7 @@ from typing import Any, Sequence
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["resolve_bounds", "normalize_obs_bounds"]
+__all__ = ["resolve_bounds", "normalize_obs_bounds", "check_box_discrete"]
 
 
 def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -67,3 +67,20 @@ def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] |
             raise ValueError(f"obs_bounds[{d}] must be finite with low < high, not {entry!r}")
         out.append([lo, hi])
     return out
+
+
+def check_box_discrete(agent: str, obs_space: spaces.Space, act_space: spaces.Space, why: str) -> None:
+    """Require a 1-D ``Box`` observation space and ``Discrete`` actions.
+
+    A ``Discrete`` observation space gets a message pointing to the tabular agent;
+    ``why`` says in a few words why this agent has no use for one.
+    """
+    if isinstance(obs_space, spaces.Discrete):
+        raise ValueError(
+            f"{agent} needs a Box observation space, but this environment's is Discrete: "
+            f"{why}; use the 'tabular' agent (avq.TabularSarsa)"
+        )
+    if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
+        raise ValueError(f"{agent} needs a 1-D Box observation space, not {obs_space}")
+    if not isinstance(act_space, spaces.Discrete):
+        raise ValueError(f"{agent} needs a Discrete action space, not {act_space}")

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents import _avq_core as core
-from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.agents._td import epsilon_greedy
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range, check_sarsa_params
 from avq.quantizer import Codebook
@@ -133,15 +133,7 @@ class AVQSarsa(BaseAgent):
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        if isinstance(obs_space, spaces.Discrete):
-            raise ValueError(
-                "AVQSarsa needs a Box observation space, but this environment's is Discrete: "
-                "there is nothing to quantize; use the 'tabular' agent (avq.TabularSarsa)"
-            )
-        if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
-            raise ValueError(f"AVQSarsa needs a 1-D Box observation space, not {obs_space}")
-        if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(f"AVQSarsa needs a Discrete action space, not {act_space}")
+        check_box_discrete("AVQSarsa", obs_space, act_space, "there is nothing to quantize")
 
     def _resolve_scale(self, scale: Any, obs_bounds: Any) -> np.ndarray:
         space = self.env.observation_space

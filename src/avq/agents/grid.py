@@ -11,7 +11,7 @@ from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
 from avq.agents.base import BaseAgent, EpisodeRecord, check_sarsa_params
-from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 
 __all__ = ["GridSarsa"]
 
@@ -105,15 +105,7 @@ class GridSarsa(BaseAgent):
         )
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        if isinstance(obs_space, spaces.Discrete):
-            raise ValueError(
-                "GridSarsa needs a Box observation space, but this environment's is Discrete: "
-                "it is a table already; use the 'tabular' agent (avq.TabularSarsa)"
-            )
-        if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
-            raise ValueError(f"GridSarsa needs a 1-D Box observation space, not {obs_space}")
-        if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(f"GridSarsa needs a Discrete action space, not {act_space}")
+        check_box_discrete("GridSarsa", obs_space, act_space, "it is a table already")
 
     # -- learned state ------------------------------------------------------------------
     @property

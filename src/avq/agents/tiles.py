@@ -10,7 +10,7 @@ from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params
-from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.tilecoding import TileCoder
 
 __all__ = ["TileSarsa", "mark_traces"]
@@ -107,15 +107,7 @@ class TileSarsa(BaseAgent):
             raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        if isinstance(obs_space, spaces.Discrete):
-            raise ValueError(
-                "TileSarsa needs a Box observation space, but this environment's is Discrete: "
-                "there is nothing to tile-code; use the 'tabular' agent (avq.TabularSarsa)"
-            )
-        if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
-            raise ValueError(f"TileSarsa needs a 1-D Box observation space, not {obs_space}")
-        if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(f"TileSarsa needs a Discrete action space, not {act_space}")
+        check_box_discrete("TileSarsa", obs_space, act_space, "there is nothing to tile-code")
 
     # -- learned state ------------------------------------------------------------------
     @property

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-from avq.envs.layouts import Layout, LayoutSpec, load_layout
+from avq.envs.layouts import COLOURS, Layout, LayoutSpec, layout_image, layout_text, load_layout
 
 __all__ = ["GridMaze", "NORTH", "EAST", "SOUTH", "WEST"]
 
@@ -19,13 +19,6 @@ GOAL_REWARD = 10.0
 MOVE_REWARD = -1.0
 BUMP_REWARD = -10.0
 
-_COLOURS = {
-    "wall": (40, 40, 40),
-    "free": (235, 235, 235),
-    "goal": (60, 170, 75),
-    "start": (160, 190, 230),
-    "robot": (200, 50, 50),
-}
 
 
 @njit(cache=True, inline="always")
@@ -181,24 +174,15 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         return {"collision": collision, "distance": self._dist[self._y][self._x]}
 
     def _render_text(self) -> str:
-        grid = [list(r.replace("S", ".")) for r in self.layout.rows]
-        x, y = self.position
-        grid[y][x] = "R"
-        return "\n".join("".join(r) for r in grid) + "\n"
+        return layout_text(self.layout, self.position)
 
     def _render_rgb(self, cell: int = 16) -> np.ndarray:
-        lay = self.layout
-        img = np.empty((lay.height, lay.width, 3), dtype=np.uint8)
-        img[:] = _COLOURS["free"]
-        img[lay.walls] = _COLOURS["wall"]
-        gx, gy = lay.goal
-        img[gy, gx] = _COLOURS["goal"]
-        img = np.repeat(np.repeat(img, cell, axis=0), cell, axis=1)
+        img = layout_image(self.layout, cell)
         # The robot: a disc in its cell.
         x, y = self.position
         yy, xx = np.mgrid[0:cell, 0:cell]
         r = cell / 2 - 0.5
         disc = (xx - r) ** 2 + (yy - r) ** 2 <= (0.75 * r) ** 2
         block = img[y * cell:(y + 1) * cell, x * cell:(x + 1) * cell]
-        block[disc] = _COLOURS["robot"]
+        block[disc] = COLOURS["robot"]
         return img

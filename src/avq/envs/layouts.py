@@ -15,7 +15,16 @@ from typing import Sequence, Union
 
 import numpy as np
 
-__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout"]
+__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS"]
+
+#: Colours of the maze renderings (RGB).
+COLOURS = {
+    "wall": (40, 40, 40),
+    "free": (235, 235, 235),
+    "goal": (60, 170, 75),
+    "start": (160, 190, 230),
+    "robot": (200, 50, 50),
+}
 
 #: Preset layouts. ``lau2002`` reconstructs the paper's maze (SPEC §6).
 MAPS: dict[str, list[str]] = {
@@ -203,3 +212,21 @@ def load_layout(layout: LayoutSpec) -> Layout:
             f"layout must be a preset name, a file path or a list of strings, not {type(layout).__name__}"
         ) from None
     return parse_layout(rows)
+
+
+def layout_text(layout: Layout, robot: tuple[int, int]) -> str:
+    """The layout as text with the robot's square marked ``R`` (and ``S`` shown as free)."""
+    grid = [list(r.replace("S", ".")) for r in layout.rows]
+    x, y = robot
+    grid[y][x] = "R"
+    return "\n".join("".join(r) for r in grid) + "\n"
+
+
+def layout_image(layout: Layout, scale: int) -> np.ndarray:
+    """The layout as an RGB image, ``scale`` pixels a square: walls dark, free light, goal green."""
+    img = np.empty((layout.height, layout.width, 3), dtype=np.uint8)
+    img[:] = COLOURS["free"]
+    img[layout.walls] = COLOURS["wall"]
+    gx, gy = layout.goal
+    img[gy, gx] = COLOURS["goal"]
+    return np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)

@@ -34,7 +34,7 @@ from avq.envs.grid_maze import (
     SOUTH,
     WEST,
 )
-from avq.envs.layouts import Layout, LayoutSpec, load_layout
+from avq.envs.layouts import COLOURS, Layout, LayoutSpec, layout_image, layout_text, load_layout
 
 __all__ = ["RobotMaze", "N_SONARS", "NORTH", "EAST", "SOUTH", "WEST"]
 
@@ -45,13 +45,7 @@ N_SONARS = 16
 #: Positions are sums of moves, so "exactly touching" may be off by a few ulps.
 EPS = 1e-9
 
-_COLOURS = {
-    "wall": (40, 40, 40),
-    "free": (235, 235, 235),
-    "goal": (60, 170, 75),
-    "robot": (200, 50, 50),
-    "beam": (240, 170, 20),
-}
+_COLOURS = {**COLOURS, "beam": (240, 170, 20)}
 
 
 # -- kernels (plain arrays and floats; Numba-ready) ------------------------------------
@@ -565,20 +559,11 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         return {"collision": collision, "distance": int(self._dist[j, i]), "sonar": self.sonar}
 
     def _render_text(self) -> str:
-        grid = [list(r.replace("S", ".")) for r in self.layout.rows]
-        i, j = self._square()
-        grid[j][i] = "R"
-        return "\n".join("".join(r) for r in grid) + "\n"
+        return layout_text(self.layout, self._square())
 
     def _render_rgb(self, scale: int = 32) -> np.ndarray:
         """Walls dark, goal green, the robot a red disc, each beam a line from its surface to its range."""
-        lay = self.layout
-        img = np.empty((lay.height, lay.width, 3), dtype=np.uint8)
-        img[:] = _COLOURS["free"]
-        img[lay.walls] = _COLOURS["wall"]
-        gx, gy = lay.goal
-        img[gy, gx] = _COLOURS["goal"]
-        img = np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
+        img = layout_image(self.layout, scale)
         hp, wp = img.shape[:2]
 
         def to_px(v: np.ndarray) -> np.ndarray:  # world coordinate -> pixel index
