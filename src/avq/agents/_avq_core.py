@@ -54,7 +54,7 @@ N_R = 7
 DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray) -> float:
     s = 0.0
     for d in range(x.shape[0]):
@@ -63,7 +63,7 @@ def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray)
     return np.sqrt(s)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def greedy_ties(Q: np.ndarray, row: int) -> tuple[int, int]:
     """The first best action of ``Q[row]`` and how many actions share that value."""
     m = Q.shape[1]
@@ -81,7 +81,7 @@ def greedy_ties(Q: np.ndarray, row: int) -> tuple[int, int]:
     return first, n_ties
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def nth_tie(Q: np.ndarray, row: int, pick: int) -> int:
     """The ``pick``-th (from 0, in index order) of the actions sharing ``Q[row]``'s maximum."""
     first, _ = greedy_ties(Q, row)
@@ -101,7 +101,7 @@ def nth_tie(Q: np.ndarray, row: int, pick: int) -> int:
 # The same draws, in the same order, as the Python version.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _may_append(dist_nearest: float, P, IP, S) -> bool:
     """SPEC §3: never within d_min of an existing vector; never beyond max_cells (counted)."""
     if not may_append(dist_nearest, P[DMIN]):
@@ -112,7 +112,7 @@ def _may_append(dist_nearest: float, P, IP, S) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _append(V, Q, E, born, S, x, parent: int) -> int:
     """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
     c = S[SIZE]
@@ -129,7 +129,7 @@ def _append(V, Q, E, born, S, x, parent: int) -> int:
     return c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
     if S[SIZE] == 0:
@@ -172,7 +172,7 @@ def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collisi
     return observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, np.sqrt(d2))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, dist_j) -> int:
     """:func:`observe` with the nearest vector ``j`` of ``x`` and its distance already known."""
     i = S[CELL]
@@ -200,7 +200,7 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
     return j
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
     """SPEC §5: the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
 
