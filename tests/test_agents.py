@@ -196,3 +196,43 @@ def test_evaluate_maze_counts_failures_and_path_ratio():
     res = evaluate_maze(AlwaysWest(), maze("corridor"))
     assert res["success_rate"] == 0.0 and res["path_ratio"] is None
     assert all(o["steps"] == 100 for o in res["outcomes"])
+
+
+@pytest.mark.parametrize("name", ["avq-paper", "avq", "tabular"])
+def test_a_loaded_agent_keeps_learning_reproducibly(tmp_path, name):
+    agent = make_agent(name, maze(), seed=1).learn(total_episodes=7)
+    path = agent.save(tmp_path / "m.zip")
+    runs = [avq.load(path).learn(total_episodes=5) for _ in range(2)]
+    assert runs[0].num_episodes == 12
+    for x, y in zip(state_of(runs[0]), state_of(runs[1])):
+        assert np.array_equal(x, y)
+
+
+def test_predict_refuses_non_finite_and_info_pairs():
+    agent = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=2)
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        agent.predict(np.array([np.nan, 1.0]))
+    with pytest.raises(ValueError, match="observation alone"):
+        agent.predict(maze().reset(seed=0))
+    with pytest.raises(ValueError, match="deterministic"):
+        agent.predict(np.zeros(2), deterministic="no")
+    tab = TabularSarsa(gym.make("FrozenLake-v1"), seed=0).learn(total_episodes=2)
+    with pytest.raises(ValueError, match="not in the observation space"):
+        tab.predict(99)
+
+
+def test_saved_files_have_ordinary_permissions(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        path = make_agent("tabular", maze(), seed=0).learn(total_episodes=1).save(tmp_path / "m.zip")
+    finally:
+        os.umask(old)
+    assert os.stat(path).st_mode & 0o777 == 0o644
+
+
+def test_load_names_a_space_mismatch_before_anything_else(tmp_path):
+    path = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=1).save(tmp_path / "m.zip")
+    with pytest.raises(ValueError, match="saved for observation_space"):
+        avq.load(path, env=gym.make("CartPole-v1"))

@@ -114,3 +114,28 @@ def test_bad_config_files(tmp_path):
     bad_params.write_text("env: CartPole-v1\nparams: 3\n")
     proc = run_cli("train", "--config", str(bad_params))
     assert proc.returncode == 2 and "'params' must be a mapping" in proc.stderr
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["train", "--env", "avq/GridMaze-v0", "--set", "seed=5"], "--seed"),
+        (["evaluate", "x", "--seed", "-1"], "--seed must be >= 0"),
+        (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile"], "Not a directory"),
+    ],
+)
+def test_more_mistakes_exit_2(args, needle, tmp_path):
+    (tmp_path / "afile").write_text("x")
+    proc = run_cli(*args, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    assert needle in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_config_values_of_the_wrong_type(tmp_path):
+    cfg = tmp_path / "c.yml"
+    cfg.write_text("env: avq/GridMaze-v0\nagent: [avq]\n")
+    proc = run_cli("train", "--config", str(cfg))
+    assert proc.returncode == 2 and "'agent' must be a string" in proc.stderr
+    cfg.write_text("env: avq/GridMaze-v0\nepisodes: -3\n")
+    proc = run_cli("train", "--config", str(cfg))
+    assert proc.returncode == 2 and "'episodes' must be an integer >= 1" in proc.stderr

@@ -35,6 +35,19 @@ def _positive_int(name: str):
     return parse
 
 
+def _nonnegative_int(name: str):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, not {text!r}") from None
+        if value < 0:
+            raise argparse.ArgumentTypeError(f"{name} must be >= 0, not {value}")
+        return value
+
+    return parse
+
+
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from avq.envs.layouts import load_layout
     from avq.experiments import reproduce
@@ -87,7 +100,7 @@ def _load_config(path: str) -> dict:
     except OSError as exc:
         raise UsageError(f"cannot read config {path}: {exc.strerror}") from None
     except yaml.YAMLError as exc:
-        raise UsageError(f"config {path} is not valid YAML: {str(exc).splitlines()[0]}") from None
+        raise UsageError(f"config {path} is not valid YAML: {' '.join(str(exc).split())}") from None
     if config is None:
         config = {}
     if not isinstance(config, dict):
@@ -98,6 +111,15 @@ def _load_config(path: str) -> dict:
     for key in ("params", "env_kwargs"):
         if config.get(key) is not None and not isinstance(config[key], dict):
             raise UsageError(f"config {path}: {key!r} must be a mapping")
+    for key in ("env", "agent", "out"):
+        if config.get(key) is not None and not isinstance(config[key], str):
+            raise UsageError(f"config {path}: {key!r} must be a string, not {config[key]!r}")
+    for key, low in (("seed", 0), ("episodes", 1), ("timesteps", 1)):
+        value = config.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < low):
+            raise UsageError(f"config {path}: {key!r} must be an integer >= {low}, not {value!r}")
+    if config.get("episodes") is not None and config.get("timesteps") is not None:
+        raise UsageError(f"config {path}: give 'episodes' or 'timesteps', not both")
     return config
 
 
@@ -185,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     budget = tr.add_mutually_exclusive_group()
     budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes to train (default 500)")
     budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="environment steps to train")
-    tr.add_argument("--seed", type=int, help="seed (default 0)")
+    tr.add_argument("--seed", type=_nonnegative_int("--seed"), help="seed (default 0)")
     tr.add_argument("--out", help="run directory (default runs/{env}__{agent}__{seed}__{time})")
     tr.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter (repeatable)")
     tr.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make (repeatable)")
@@ -197,7 +219,8 @@ def build_parser() -> argparse.ArgumentParser:
                         description="Load DIR/model.zip and report the mean and spread of the return.")
     ev.add_argument("run_dir", metavar="DIR", help="a directory written by 'avq train'")
     ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
-    ev.add_argument("--seed", type=int, default=0, help="seed of the evaluation episodes (default 0)")
+    ev.add_argument("--seed", type=_nonnegative_int("--seed"), default=0,
+                    help="seed of the evaluation episodes (default 0)")
     ev.add_argument("--json", action="store_true", help="print JSON")
     ev.set_defaults(func=_cmd_evaluate)
     return parser
@@ -214,7 +237,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"avq: error: {exc}", file=sys.stderr)
         return 2
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, OSError) as exc:  # bad values, and paths that cannot be read or written
         if os.environ.get("AVQ_DEBUG"):
             raise
         print(f"avq: error: {str(exc).splitlines()[0]}", file=sys.stderr)

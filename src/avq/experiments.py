@@ -257,6 +257,8 @@ def train(
 
     if (episodes is None) == (timesteps is None):
         raise ValueError("give exactly one of episodes or timesteps")
+    if params and "seed" in params:
+        raise ValueError("seed is not an agent parameter here: give it as seed= (on the command line, --seed)")
     env = make_env(env_id, env_kwargs)
     model = make_agent(agent, env, seed=seed, **(params or {}))
     out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)

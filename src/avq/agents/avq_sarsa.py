@@ -139,7 +139,10 @@ class AVQSarsa(BaseAgent):
         space = self.env.observation_space
         n = space.shape[0]
         if scale is not None and obs_bounds is not None:
-            raise ValueError("give scale or obs_bounds, not both")
+            raise ValueError(
+                "give scale or obs_bounds, not both (avq-paper sets scale=1, the paper's plain distance: "
+                "pass scale=None with obs_bounds to scale by bounds instead)"
+            )
         if scale is None:
             low, high = resolve_bounds(space, obs_bounds)
             return high - low
@@ -266,7 +269,7 @@ class AVQSarsa(BaseAgent):
             fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
 
             def get_pos():
-                elapsed = time_limit._elapsed_steps if time_limit is not None else 0
+                elapsed = (time_limit._elapsed_steps or 0) if time_limit is not None else 0
                 return np.array([base._x, base._y, elapsed], dtype=np.int64)
 
             def set_pos(pos):

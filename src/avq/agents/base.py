@@ -96,6 +96,12 @@ def _space_to_json(space: spaces.Space) -> dict[str, Any]:
     return {"type": type(space).__name__}
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` so that a crash leaves the old file or the new one."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -105,6 +111,7 @@ def _atomic_write_bytes(path: Path, data: bytes) -> None:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual permissions
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -321,7 +328,16 @@ class BaseAgent:
         """
         if not self._is_setup:
             raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() before predict()")
-        obs = np.asarray(observation, dtype=np.float64)
+        if not isinstance(deterministic, (bool, np.bool_)):
+            raise ValueError(f"deterministic must be True or False, not {deterministic!r}")
+        if isinstance(observation, tuple) and len(observation) == 2 and isinstance(observation[1], dict):
+            raise ValueError("predict got an (observation, info) pair; pass the observation alone: obs, info = env.reset()")
+        try:
+            obs = np.asarray(observation, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"observation must be an array of numbers, not {type(observation).__name__}") from None
+        if not np.all(np.isfinite(obs)):
+            raise ValueError("observation contains NaN or infinite values")
         shape = self._obs_shape()
         single = obs.shape == shape
         if not single and (obs.ndim != len(shape) + 1 or obs.shape[1:] != shape):
@@ -353,7 +369,9 @@ class BaseAgent:
         self.num_timesteps = int(meta["num_timesteps"])
         self.num_episodes = int(meta["num_episodes"])
         self._rng.bit_generator.state = meta["rng"]
-        self._env_seed = None
+        # The environment's random state is not saved: seed the next reset from the agent's seed
+        # and the episodes done, so that continuing a loaded agent is reproducible.
+        self._env_seed = int(np.random.SeedSequence([self.seed or 0, self.num_episodes]).generate_state(1)[0])
 
     def save(self, path: str | os.PathLike) -> Path:
         """Save parameters (JSON) and learned arrays (``.npz``) in one zip file.
@@ -364,6 +382,8 @@ class BaseAgent:
         from avq import __version__
 
         path = Path(path)
+        if path.is_dir() or not path.name:
+            raise ValueError(f"{path} is a directory; give a file name such as {path / 'model.zip'}")
         if path.suffix == "":
             path = path.with_suffix(".zip")
         state, arrays = self._state_dict()
@@ -444,12 +464,13 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
             raise ValueError(f"{path}: the model records no environment id; pass env= to load it")
         env = meta["env_id"]
     params = dict(meta["params"])
-    agent = cls(env, **params)
+    env = _make_env(env)
     for key in ("observation_space", "action_space"):
-        want = meta[key]
-        have = _space_to_json(getattr(agent.env, key))
+        want = meta.get(key)
+        have = _space_to_json(getattr(env, key))
         if want != have:
             raise ValueError(f"{path}: the model was saved for {key} {want}, but env has {have}")
+    agent = cls(env, **params)
     agent._setup()
     agent._is_setup = True
     try:

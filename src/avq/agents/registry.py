@@ -86,6 +86,8 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     if name not in AGENTS:
         raise ValueError(f"unknown agent {name!r}; known agents: {', '.join(sorted(AGENTS))}")
     cls, defaults = AGENTS[name]
+    if "seed" in overrides:
+        raise ValueError("seed is not an agent parameter here: pass it as seed= (on the command line, --seed)")
     valid = set(cls._param_names()) - {"seed"}
     unknown = sorted(set(overrides) - valid)
     if unknown:

@@ -200,7 +200,7 @@ class TabularSarsa(BaseAgent):
             T = np.array([self._n, self._ep_state, self._ep_action, self._ep_steps, self._ep_new,
                           int(self._in_episode)], dtype=np.int64)
             TF = np.array([self._ep_return])
-            elapsed = time_limit._elapsed_steps if time_limit is not None else 0
+            elapsed = (time_limit._elapsed_steps or 0) if time_limit is not None else 0
             pos = np.array([base._x, base._y, elapsed], dtype=np.int64)
             rec = np.zeros((max_records, 7))
             steps, episodes = run_tabular_grid_maze(
@@ -228,6 +228,11 @@ class TabularSarsa(BaseAgent):
         return run
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        if self._discrete:
+            space = self.env.observation_space
+            bad = [o for o in obs if o != int(o) or not space.contains(int(o))]
+            if bad:
+                raise ValueError(f"observation {bad[0]!r} is not in the observation space {space}")
         out = np.zeros(len(obs), dtype=np.int64)
         for b, o in enumerate(obs):
             row = self._row(o, create=False)
