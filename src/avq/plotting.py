@@ -101,9 +101,9 @@ def plot_partition(agent: BaseAgent, env, path: str | os.PathLike, title: str | 
     grid = np.full((h, w), np.nan)
     grid[free[:, 1], free[:, 0]] = cells
     n_cells = len(vectors)
-    base_colours = plt.get_cmap("tab20")(np.arange(20))
+    base_colours = np.concatenate([plt.get_cmap(name)(np.arange(20)) for name in ("tab20", "tab20b", "tab20c")])
     base_colours[:, :3] = 0.55 + 0.45 * base_colours[:, :3]  # pastel, so arrows and numbers stay readable
-    cmap = ListedColormap(base_colours[np.arange(max(n_cells, 1)) % 20])
+    cmap = ListedColormap(base_colours[np.arange(max(n_cells, 1)) % len(base_colours)])
     fig, ax = plt.subplots(figsize=(max(5, w * 0.5), max(4, h * 0.5)))
     ax.imshow(np.where(layout.walls, 1.0, np.nan), cmap=ListedColormap([(0.2, 0.2, 0.2)]), vmin=0, vmax=1,
               origin="upper", extent=(-0.5, w - 0.5, h - 0.5, -0.5))
@@ -140,8 +140,15 @@ def plot_partition(agent: BaseAgent, env, path: str | os.PathLike, title: str | 
         far = np.argmax(layout.distances[starts[:, 1], starts[:, 0]])
         start = (int(starts[far, 0]), int(starts[far, 1]))
     path_xy = np.array(greedy_path(agent, env, start))
-    ax.plot(path_xy[:, 0], path_xy[:, 1], "-", color="crimson", lw=2.2, alpha=0.85)
-    ax.plot(*start, "s", color="crimson", ms=8)
+    reached = tuple(path_xy[-1]) == tuple(layout.goal)
+    ax.plot(path_xy[:, 0], path_xy[:, 1], "-", color="crimson", lw=2.2, alpha=0.85,
+            label="greedy path" + ("" if reached else " (does not reach the goal)"))
+    ax.plot(*start, "s", color="crimson", ms=8, mfc="none", mew=2, label="start")
+    ax.plot([], [], "*", color="darkgreen", ms=12, mec="k", label="goal")
+    if has_codebook:
+        ax.plot([], [], "o", color="k", ms=3, label="codebook vector (cell number)")
+        ax.plot([], [], marker=r"$\rightarrow$", color="k", ls="none", ms=10, label="greedy action of the cell")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7, frameon=False)
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
     ax.set_xticks(range(w))
@@ -180,11 +187,14 @@ def plot_learning_curves(
         rows = np.stack([smooth(np.asarray(r[:n], float), window) for r in runs])
         mean, half = mean_ci95(rows)
         x = np.arange(1, n + 1)
-        ax.plot(x, mean, label=f"{name} ({len(runs)} seeds)")
+        ax.plot(x, mean, label=f"{name} ({len(runs)} seed{'s' if len(runs) != 1 else ''})")
         ax.fill_between(x, mean - half, mean + half, alpha=0.25)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("trial")
-    ax.set_ylabel(f"{ylabel} ({window}-trial mean)")
-    ax.set_title(title or "learning curves (mean, 95% interval over seeds)")
+    ax.set_ylabel(f"{ylabel} ({min(window, n)}-trial mean)")
+    ax.set_title(title or "learning curves (mean and 95% t-interval over seeds)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     if two:
@@ -196,6 +206,8 @@ def plot_learning_curves(
             x = np.arange(1, n + 1)
             ax2.plot(x, mean, label=name)
             ax2.fill_between(x, mean - half, mean + half, alpha=0.25)
+        ax2.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax2.set_xlabel("trial")
         ax2.set_ylabel("cells")
         ax2.set_title("codebook size")
