@@ -391,6 +391,8 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         self.move = move
         self.sonar_range = sonar_range
         self.sonar_noise = sonar_noise
+        if not isinstance(observe_sonar, (bool, np.bool_)):
+            raise ValueError(f"observe_sonar must be True or False, not {observe_sonar!r}")
         self.observe_sonar = bool(observe_sonar)
         self.max_steps = int(max_steps)
         self.render_mode = render_mode
