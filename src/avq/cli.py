@@ -22,30 +22,27 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
 
 
-def _positive_int(name: str):
+def _int_at_least(name: str, low: int):
+    """An argparse type: an integer >= ``low``, with a message naming the option."""
+
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{name} must be an integer, not {text!r}") from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be >= 1, not {value}")
+        if value < low:
+            raise argparse.ArgumentTypeError(f"{name} must be >= {low}, not {value}")
         return value
 
     return parse
+
+
+def _positive_int(name: str):
+    return _int_at_least(name, 1)
 
 
 def _nonnegative_int(name: str):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer, not {text!r}") from None
-        if value < 0:
-            raise argparse.ArgumentTypeError(f"{name} must be >= 0, not {value}")
-        return value
-
-    return parse
+    return _int_at_least(name, 0)
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
