@@ -168,8 +168,11 @@ class Codebook:
         data[: self.size] = self._data[: self.size]
         self._data = data
 
-    def copy(self) -> "Codebook":
-        cb = Codebook(self.n_dims, self.scale, capacity=len(self._data))
-        cb._data[:] = self._data
-        cb.size = self.size
+    @classmethod
+    def from_vectors(cls, vectors: np.ndarray, scale: float | Sequence[float] | np.ndarray = 1.0) -> "Codebook":
+        """A codebook holding a copy of ``vectors`` (``(p, n)``)."""
+        vectors = np.asarray(vectors, dtype=np.float64)
+        cb = cls(vectors.shape[1], scale, capacity=max(len(vectors), 1))
+        cb._data[: len(vectors)] = vectors
+        cb.size = len(vectors)
         return cb

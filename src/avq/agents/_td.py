@@ -10,12 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["epsilon_greedy", "greedy", "sarsa_td_error", "sarsa_lambda_update"]
-
-
-def greedy(q_row: np.ndarray) -> int:
-    """The best action, lowest index on ties (deterministic; used for evaluation)."""
-    return int(q_row.argmax())
+__all__ = ["epsilon_greedy", "sarsa_td_error", "sarsa_lambda_update"]
 
 
 def epsilon_greedy(q_row: np.ndarray, epsilon: float, rng: np.random.Generator) -> int:

@@ -330,10 +330,7 @@ class AVQSarsa(BaseAgent):
 
     def _codebook(self) -> Codebook:
         """The current codebook as a :class:`Codebook` (a copy: geometry queries only)."""
-        cb = Codebook(self._V.shape[1], self._scale, capacity=max(self.n_cells, 1))
-        for row in self._V[: self.n_cells]:
-            cb.append(row)
-        return cb
+        return Codebook.from_vectors(self._V[: self.n_cells], self._scale)
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         if self.n_cells == 0:
