@@ -1,7 +1,7 @@
 """avq: reinforcement learning with adaptive vector quantization.
 
 Sarsa(λ) on a growing and merging set of Voronoi cells (Lau, Mak & Lee, 2002).
-Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``).
+Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``).
 """
 
 __version__ = "0.1.0"
