@@ -225,21 +225,28 @@ class AVQSarsa(BaseAgent):
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         env, rng, eps = self.env, self._rng, self.epsilon
         S = self._S
+        shape = self._V.shape[1:]
         a = int(S[core.ACTION])
         n = 0
         ended = False
+        state = self._state()
+        cap = self._V.shape[0]
         while n < max_steps:
-            self._ensure_capacity(3)  # a step appends at most three cells
-            state = self._state()
+            if S[core.SIZE] + 3 > cap:  # a step appends at most three cells
+                self._ensure_capacity(3)
+                state = self._state()
+                cap = self._V.shape[0]
             obs, r, terminated, truncated, info = env.step(a)
             n += 1
-            x = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+            x = np.asarray(obs, dtype=np.float64)
+            if x.shape != shape:
+                x = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)  # raises, naming the step
             done = terminated or truncated
             j = core.observe(*state, x, float(r), bool(info.get("collision", False)), done)
             if j < 0:
                 continue
             if not terminated:
-                a = epsilon_greedy(self._Q[j], eps, rng)
+                a = epsilon_greedy(state[1][j], eps, rng)
             core.learn(*state, x, j, a, terminated, done)
             if done:
                 ended = True
