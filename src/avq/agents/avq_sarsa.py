@@ -11,7 +11,7 @@ from gymnasium import spaces
 from avq.agents import _avq_core as core
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.agents._td import epsilon_greedy
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_range, check_sarsa_params
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record, check_int, check_range, check_sarsa_params
 from avq.quantizer import Codebook
 
 __all__ = ["AVQSarsa"]
@@ -370,15 +370,7 @@ class AVQSarsa(BaseAgent):
 
 
 def _record(rec: np.ndarray) -> EpisodeRecord:
-    return {
-        "steps": int(rec[core.R_STEPS]),
-        "return": float(rec[core.R_RETURN]),
-        "n_cells": int(rec[core.R_CELLS]),
-        "appends": int(rec[core.R_APPENDS]),
-        "merges": int(rec[core.R_MERGES]),
-        "refused": int(rec[core.R_REFUSED]),
-        "decisions": int(rec[core.R_DECISIONS]),
-    }
+    return episode_record(*rec)
 
 
 def _fused_plan(env: gym.Env):

@@ -33,6 +33,18 @@ Callback = Callable[["BaseAgent", EpisodeRecord], "bool | None"]
 
 _AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
 
+#: The fields every agent records per episode (``episode`` and ``wall_s`` are added by ``learn``).
+RECORD_FIELDS = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
+
+
+def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any = 0, refused: Any = 0,
+                   decisions: Any = None) -> EpisodeRecord:
+    """One episode's record with plain Python numbers; ``decisions`` defaults to ``steps``."""
+    return {
+        "steps": int(steps), "return": float(ret), "n_cells": int(n_cells), "appends": int(appends),
+        "merges": int(merges), "refused": int(refused), "decisions": int(steps if decisions is None else decisions),
+    }
+
 
 def _make_env(env: gym.Env | str) -> gym.Env:
     if isinstance(env, str):

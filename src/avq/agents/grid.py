@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_sarsa_params
+from avq.agents.base import BaseAgent, EpisodeRecord, check_sarsa_params, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 
 __all__ = ["GridSarsa"]
@@ -200,15 +200,7 @@ class GridSarsa(BaseAgent):
         return n, ended
 
     def _end_episode(self) -> EpisodeRecord:
-        return {
-            "steps": self._ep_steps,
-            "return": self._ep_return,
-            "n_cells": self._n,
-            "appends": self._ep_new,
-            "merges": 0,
-            "refused": 0,
-            "decisions": self._ep_steps,
-        }
+        return episode_record(self._ep_steps, self._ep_return, self._n, self._ep_new)
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         rows = self._row_of_bin[self.cells(obs)]

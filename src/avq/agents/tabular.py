@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record, check_int, check_sarsa_params
 
 __all__ = ["TabularSarsa"]
 
@@ -160,15 +160,7 @@ class TabularSarsa(BaseAgent):
         return n, ended
 
     def _end_episode(self) -> EpisodeRecord:
-        return {
-            "steps": self._ep_steps,
-            "return": self._ep_return,
-            "n_cells": self._n,
-            "appends": self._ep_new,
-            "merges": 0,
-            "refused": 0,
-            "decisions": self._ep_steps,
-        }
+        return episode_record(self._ep_steps, self._ep_return, self._n, self._ep_new)
 
     def _fused_runner(self):
         from avq.agents.avq_sarsa import _fused_plan
@@ -218,11 +210,7 @@ class TabularSarsa(BaseAgent):
                 time_limit._elapsed_steps = int(pos[2])
             if order is not None:
                 order._has_reset = True
-            keys_out = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
-            records = [
-                {k: (float(v) if k == "return" else int(v)) for k, v in zip(keys_out, rec[i])}
-                for i in range(episodes)
-            ]
+            records = [episode_record(*rec[i]) for i in range(episodes)]
             return steps, records, bool(T[5])
 
         return run

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params
+from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.tilecoding import TileCoder
 
@@ -205,15 +205,9 @@ class TileSarsa(BaseAgent):
         return n, ended
 
     def _end_episode(self) -> EpisodeRecord:
-        return {
-            "steps": self._ep_steps,
-            "return": self._ep_return,
-            "n_cells": self._coder.n_used,
-            "appends": self._coder.n_used - self._ep_used0,
-            "merges": 0,
-            "refused": self._coder.overflows - self._ep_overflows0,
-            "decisions": self._ep_steps,
-        }
+        coder = self._coder
+        return episode_record(self._ep_steps, self._ep_return, coder.n_used, coder.n_used - self._ep_used0,
+                              refused=coder.overflows - self._ep_overflows0)
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         return self.q_values(obs).argmax(axis=1).astype(np.int64)

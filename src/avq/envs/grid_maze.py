@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-from avq.envs.layouts import COLOURS, Layout, LayoutSpec, layout_image, layout_text, load_layout
+from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
 
 __all__ = ["GridMaze", "NORTH", "EAST", "SOUTH", "WEST"]
 
@@ -88,13 +88,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         render_mode: str | None = None,
     ) -> None:
         self.layout: Layout = load_layout(layout)
-        if start not in ("random", "fixed"):
-            raise ValueError(f"start must be 'random' or 'fixed', not {start!r}")
-        if start == "fixed" and self.layout.start is None:
-            raise ValueError(
-                f"layout {self.layout.name}: start='fixed' needs an 'S' in the layout; "
-                "add one or use start='random'"
-            )
+        check_start(self.layout, start)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
         self.start = start

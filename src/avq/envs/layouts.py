@@ -15,7 +15,7 @@ from typing import Sequence, Union
 
 import numpy as np
 
-__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS"]
+__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS", "check_start"]
 
 #: Colours of the maze renderings (RGB).
 COLOURS = {
@@ -230,3 +230,13 @@ def layout_image(layout: Layout, scale: int) -> np.ndarray:
     gx, gy = layout.goal
     img[gy, gx] = COLOURS["goal"]
     return np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
+
+
+def check_start(layout: Layout, start: str) -> None:
+    """A maze's ``start`` argument: ``"random"``, or ``"fixed"`` when the layout has an ``S``."""
+    if start not in ("random", "fixed"):
+        raise ValueError(f"start must be 'random' or 'fixed', not {start!r}")
+    if start == "fixed" and layout.start is None:
+        raise ValueError(
+            f"layout {layout.name}: start='fixed' needs an 'S' in the layout; add one or use start='random'"
+        )

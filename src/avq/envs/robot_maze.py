@@ -34,7 +34,7 @@ from avq.envs.grid_maze import (
     SOUTH,
     WEST,
 )
-from avq.envs.layouts import COLOURS, Layout, LayoutSpec, layout_image, layout_text, load_layout
+from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
 
 __all__ = ["RobotMaze", "N_SONARS", "NORTH", "EAST", "SOUTH", "WEST"]
 
@@ -360,13 +360,7 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         render_mode: str | None = None,
     ) -> None:
         self.layout: Layout = load_layout(layout)
-        if start not in ("random", "fixed"):
-            raise ValueError(f"start must be 'random' or 'fixed', not {start!r}")
-        if start == "fixed" and self.layout.start is None:
-            raise ValueError(
-                f"layout {self.layout.name}: start='fixed' needs an 'S' in the layout; "
-                "add one or use start='random'"
-            )
+        check_start(self.layout, start)
         radius = _number("radius", radius)
         if not 0.0 < radius < 0.5:
             raise ValueError(f"radius must be in (0, 0.5) so that the robot fits in a square, not {radius}")
