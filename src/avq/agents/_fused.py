@@ -12,13 +12,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from avq._kernels import nearest_index
+from avq._kernels import borrowed, nearest_index
 from avq.agents._avq_core import (
     ACTION, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
     begin_episode, end_episode, greedy_ties, learn, nth_tie, observe, observe_at,
 )
 from avq.envs.grid_maze import grid_move
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
+
+
+@njit(cache=True, inline="always")
+def _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F):
+    """Borrowed views (see :func:`avq._kernels.borrowed`) of the agent's state arrays."""
+    return (borrowed(V), borrowed(Q), borrowed(E), borrowed(born), borrowed(act), borrowed(pc),
+            borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F))
 
 
 @njit(cache=True)
@@ -30,6 +37,8 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
     ``fixed`` is the fixed start ``(x, y)``, or ``(-1, -1)`` for random starts drawn
     like ``GridMaze.reset``. Returns ``(steps, episodes, status)``.
     """
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F)
+    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
     steps = 0
     episodes = 0
@@ -112,6 +121,8 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
     ``pos`` holds the robot's ``x, y`` and the steps of the current episode (as a float).
     Observations are rounded to float32 as the environment's are.
     """
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F)
+    grid, starts, dirs, pos, rec = borrowed(grid), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
     steps = 0
     episodes = 0
@@ -200,6 +211,8 @@ def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon,
     episode, in-episode flag; ``TF[0]``: episode return. ``q`` and ``e`` must have a
     row for every position. Returns ``(steps, episodes)``.
     """
+    q, e, row_of, keys, T, TF = borrowed(q), borrowed(e), borrowed(row_of), borrowed(keys), borrowed(T), borrowed(TF)
+    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     decay = gamma * lam

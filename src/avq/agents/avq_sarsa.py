@@ -255,7 +255,7 @@ class AVQSarsa(BaseAgent):
 
     def _end_episode(self) -> EpisodeRecord:
         core.end_episode(*self._state(), self._rec)
-        return _record(self._rec)
+        return episode_record(*self._rec)
 
     # -- the fused loop (avq.agents._fused) ------------------------------------------------
     def _fused_runner(self):
@@ -308,13 +308,12 @@ class AVQSarsa(BaseAgent):
 
         def run(max_steps_budget: int, max_episodes: int, max_records: int):
             pos = get_pos()
-            rec = np.zeros((max_records, core.N_R))
-            records: list[EpisodeRecord] = []
-            steps = 0
+            rec = np.zeros((min(max_episodes, max_records), core.N_R))
+            steps = episodes = 0
             while True:
-                n, eps, status = kernel(pos, max_steps_budget - steps, min(max_episodes - len(records), max_records), rec)
+                n, eps, status = kernel(pos, max_steps_budget - steps, len(rec) - episodes, rec[episodes:])
                 steps += n
-                records.extend(_record(rec[k]) for k in range(eps))
+                episodes += eps
                 if status != core.NEED_CAPACITY:
                     break
                 self._ensure_capacity(4)
@@ -324,7 +323,7 @@ class AVQSarsa(BaseAgent):
                 time_limit._elapsed_steps = elapsed
             if order is not None:
                 order._has_reset = True
-            return steps, records, bool(self._S[core.IN_EPISODE])
+            return steps, rec[:episodes], bool(self._S[core.IN_EPISODE])
 
         return run
 
@@ -367,10 +366,6 @@ class AVQSarsa(BaseAgent):
         self._S[core.SIZE] = p
         self._S[core.EPISODES] = self.num_episodes
         self._S[core.GEOM] += 1
-
-
-def _record(rec: np.ndarray) -> EpisodeRecord:
-    return episode_record(*rec)
 
 
 def _fused_plan(env: gym.Env):

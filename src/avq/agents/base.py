@@ -22,6 +22,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq.agents._history import EpisodeHistory
+
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
 
 FORMAT_VERSION = 1
@@ -157,7 +159,7 @@ class BaseAgent:
         self._env_seed: int | None = int(env_seq.generate_state(1)[0])
         self.num_timesteps = 0
         self.num_episodes = 0
-        self.history_: list[EpisodeRecord] = []
+        self.history_ = EpisodeHistory()
         self._in_episode = False
         self._wall_s = 0.0
         self._is_setup = False
@@ -193,11 +195,12 @@ class BaseAgent:
     def _end_episode(self) -> EpisodeRecord:
         raise NotImplementedError
 
-    def _fused_runner(self) -> Callable[[int, int, int], tuple[int, list[EpisodeRecord], bool]] | None:
+    def _fused_runner(self) -> Callable[[int, int, int], tuple[int, np.ndarray, bool]] | None:
         """A compiled loop over environment and agent, when the agent has one for this env.
 
         It is called as ``runner(max_steps, max_episodes, max_records)`` and returns
-        ``(steps, records, in_episode)``. None: step the environment from Python.
+        ``(steps, rows, in_episode)``, ``rows`` one per finished episode with the
+        columns of :data:`RECORD_FIELDS`. None: step the environment from Python.
         """
         return None
 
@@ -253,8 +256,8 @@ class BaseAgent:
             while (steps_left is None or steps_left > 0) and (episodes_left is None or episodes_left > 0):
                 if fused is not None and (self._in_episode or self._env_seed is None):
                     # Many steps and episodes in one compiled call (see AVQSarsa's fused loops).
-                    chunk = 1 if callback is not None else (64 if bar is not None else 4096)
-                    n, records, self._in_episode = fused(
+                    chunk = 1 if callback is not None else (64 if bar is not None else 1 << 16)
+                    n, rows, self._in_episode = fused(
                         steps_left if steps_left is not None else 1 << 62,
                         episodes_left if episodes_left is not None else 1 << 62,
                         chunk,
@@ -266,22 +269,18 @@ class BaseAgent:
                             bar.update(n)
                     elapsed = time.perf_counter() - t0
                     t0 = time.perf_counter()
-                    done_steps = 0
-                    stop = False
-                    for record in records:  # wall time shared out over the chunk's episodes by steps
-                        done_steps += record["steps"]
-                        self.num_episodes += 1
-                        record["episode"] = self.num_episodes
-                        record["wall_s"] = self._wall_s + elapsed * done_steps / max(n, 1)
-                        self.history_.append(record)
-                        if episodes_left is not None:
-                            episodes_left -= 1
-                            if bar is not None:
-                                bar.update(1)
-                        if callback is not None and callback(self, record) is False:
-                            stop = True
+                    # Wall time shared out over the chunk's episodes by their steps.
+                    wall = self._wall_s + elapsed * np.cumsum(rows[:, 0]) / max(n, 1)
+                    first = len(self.history_)
+                    self.history_.extend_block(self.num_episodes + 1, rows, wall)
+                    self.num_episodes += len(rows)
                     self._wall_s += elapsed
-                    if stop:
+                    if episodes_left is not None:
+                        episodes_left -= len(rows)
+                        if bar is not None:
+                            bar.update(len(rows))
+                    if callback is not None and any(
+                            callback(self, self.history_[k]) is False for k in range(first, len(self.history_))):
                         break
                     continue
                 if not self._in_episode:
@@ -317,11 +316,8 @@ class BaseAgent:
         return self
 
     def episode_history(self) -> dict[str, np.ndarray]:
-        """The per-episode records as columns (one array per field)."""
-        if not self.history_:
-            return {}
-        keys = self.history_[0].keys()
-        return {k: np.array([r[k] for r in self.history_]) for k in keys}
+        """The per-episode records as columns (one array per field; empty before the first episode)."""
+        return self.history_.columns()
 
     # -- acting -------------------------------------------------------------------------
     def predict(

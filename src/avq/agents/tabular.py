@@ -194,7 +194,7 @@ class TabularSarsa(BaseAgent):
             TF = np.array([self._ep_return])
             elapsed = (time_limit._elapsed_steps or 0) if time_limit is not None else 0
             pos = np.array([base._x, base._y, elapsed], dtype=np.int64)
-            rec = np.zeros((max_records, 7))
+            rec = np.zeros((min(max_episodes, max_records), 7))
             steps, episodes = run_tabular_grid_maze(
                 self._q, self._e, row_of, keys, T, TF, self.alpha, self.gamma, self.lam, self.epsilon,
                 self.traces == "replacing", self._rng, base.np_random, walls, layout.goal[0], layout.goal[1],
@@ -210,8 +210,7 @@ class TabularSarsa(BaseAgent):
                 time_limit._elapsed_steps = int(pos[2])
             if order is not None:
                 order._has_reset = True
-            records = [episode_record(*rec[i]) for i in range(episodes)]
-            return steps, records, bool(T[5])
+            return steps, rec[:episodes], bool(T[5])
 
         return run
 
