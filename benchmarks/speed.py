@@ -3,7 +3,7 @@
 Every figure is a ratio to a reference timed in this same process (the machine is
 shared and noisy), plus the absolute number:
 
-1. fused AVQ training on GridMaze ``lau2002`` (``avq-paper`` and ``avq``) against a
+1. fused training on GridMaze ``lau2002`` (``avq-paper``, ``avq``, ``tabular``) against a
    minimal hand-written Numba tabular Sarsa(λ) with the maze inside the loop
    (:func:`reference_steps_per_second`, the practical speed limit for this work);
 2. the generic path (AVQ stepping a Gymnasium environment from Python) against a
@@ -93,7 +93,7 @@ def reference_steps_per_second(n_steps: int) -> float:
 
 
 def avq_fused_steps_per_second(name: str, episodes: int) -> tuple[float, int]:
-    """Training throughput on the fused path, after a warm-up that also grows the codebook."""
+    """Training throughput on the fused path, after a warm-up that also grows the codebook (or table)."""
     best = 0.0
     for rep in range(3):
         agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep)
@@ -171,7 +171,7 @@ def main() -> None:
     ref = reference_steps_per_second(int(5_000_000 * scale))
     print(f"\n1. fused training on GridMaze lau2002 (reference: Numba tabular Sarsa(λ), {ref / 1e6:.2f} M steps/s)")
     print(f"   {'agent':<10} {'M steps/s':>10} {'of reference':>13} {'cells':>6}")
-    for name in ("avq-paper", "avq"):
+    for name in ("avq-paper", "avq", "tabular"):
         sps, cells = avq_fused_steps_per_second(name, int(3000 * scale) or 100)
         print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
 

@@ -20,7 +20,6 @@ import gymnasium as gym
 import numpy as np
 from joblib import Parallel, delayed
 
-import avq
 from avq import AVQSarsa, evaluate_maze
 
 CARTPOLE_BOUNDS = [(-2.4, 2.4), (-3.0, 3.0), (-0.21, 0.21), (-3.5, 3.5)]

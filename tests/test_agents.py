@@ -236,3 +236,22 @@ def test_load_names_a_space_mismatch_before_anything_else(tmp_path):
     path = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=1).save(tmp_path / "m.zip")
     with pytest.raises(ValueError, match="saved for observation_space"):
         avq.load(path, env=gym.make("CartPole-v1"))
+
+
+@pytest.mark.parametrize(("bad_step", "where"), [
+    (((np.nan, 1.0), -1.0, False, False, False), "observation"),
+    (((1.0, 1.0), np.inf, False, False, False), "reward"),
+])
+def test_avq_names_the_step_of_a_non_finite_observation_or_reward(scripted, bad_step, where):
+    good = ((1.0, 0.0), -1.0, False, False, False)
+    env = scripted([((0.0, 0.0), [good, good, bad_step, good])])
+    agent = AVQSarsa(env, seed=0)
+    with pytest.raises(ValueError, match=rf"{where} .* at step 3 of episode 1 is not finite"):
+        agent.learn(total_episodes=1)
+    assert agent.n_cells >= 1 and np.isfinite(agent.q_).all()
+
+
+def test_avq_refuses_a_non_finite_first_observation(scripted):
+    env = scripted([((np.nan, 0.0), [((1.0, 0.0), -1.0, True, False, False)])])
+    with pytest.raises(ValueError, match="at step 0 of episode 1 is not finite"):
+        AVQSarsa(env, seed=0).learn(total_episodes=1)

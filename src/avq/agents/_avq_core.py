@@ -27,6 +27,8 @@ no result: those rows would be updated by ``0 * step``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -52,6 +54,8 @@ R_STEPS, R_RETURN, R_CELLS, R_APPENDS, R_MERGES, R_REFUSED, R_DECISIONS = range(
 N_R = 7
 # Status returned by the fused loops.
 DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
+# Returned by observe() for an observation or reward that is NaN or infinite.
+NOT_FINITE = -2
 
 
 @njit(cache=True, inline="always")
@@ -166,8 +170,14 @@ def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collisi
 
     Returns -1 while the aggregate transition goes on (same cell, no collision, not
     ``done``), else the cell ``j`` it ends in, after the growth rules of SPEC §3
-    that act at once (collision; reward jump).
+    that act at once (collision; reward jump). Returns ``NOT_FINITE``, changing
+    nothing, when ``x`` or ``r`` is NaN or infinite.
     """
+    if not math.isfinite(r):
+        return NOT_FINITE
+    for d in range(x.shape[0]):
+        if not math.isfinite(x[d]):
+            return NOT_FINITE
     j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
     return observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, np.sqrt(d2))
 

@@ -217,6 +217,18 @@ def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon,
     episodes = 0
     decay = gamma * lam
     m = q.shape[1]
+    # The rows whose traces are non-zero, so that an update touches only those (the others would
+    # change by 0 * step); rebuilt here because a call may start inside an episode.
+    active = np.empty(q.shape[0], dtype=np.int64)
+    is_active = np.zeros(q.shape[0], dtype=np.bool_)
+    n_active = 0
+    for r in range(T[0]):
+        for b in range(m):
+            if e[r, b] != 0.0:
+                active[n_active] = r
+                is_active[r] = True
+                n_active += 1
+                break
     while True:
         if T[5] == 0:
             if steps >= budget_steps or episodes >= budget_episodes or episodes >= rec.shape[0]:
@@ -229,9 +241,12 @@ def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon,
                 pos[0] = starts[k, 0]
                 pos[1] = starts[k, 1]
             pos[2] = 0
-            for r in range(T[0]):
+            for k in range(n_active):
+                r = active[k]
+                is_active[r] = False
                 for b in range(m):
                     e[r, b] = 0.0
+            n_active = 0
             T[3] = 0
             T[4] = 0
             TF[0] = 0.0
@@ -271,8 +286,13 @@ def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon,
             e[s, a] = 1.0
         else:
             e[s, a] += 1.0
+        if not is_active[s]:
+            is_active[s] = True
+            active[n_active] = s
+            n_active += 1
         step = alpha * delta
-        for r in range(T[0]):
+        for k in range(n_active):
+            r = active[k]
             for b in range(m):
                 q[r, b] += step * e[r, b]
                 e[r, b] *= decay
