@@ -69,7 +69,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-_CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "timesteps", "out", "avq_version"}
+_CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "timesteps", "out", "checkpoint_every",
+                "avq_version"}
 
 
 def _key_values(pairs: list[str], flag: str) -> dict:
@@ -111,7 +112,7 @@ def _load_config(path: str) -> dict:
     for key in ("env", "agent", "out"):
         if config.get(key) is not None and not isinstance(config[key], str):
             raise UsageError(f"config {path}: {key!r} must be a string, not {config[key]!r}")
-    for key, low in (("seed", 0), ("episodes", 1), ("timesteps", 1)):
+    for key, low in (("seed", 0), ("episodes", 1), ("timesteps", 1), ("checkpoint_every", 1)):
         value = config.get(key)
         if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < low):
             raise UsageError(f"config {path}: {key!r} must be an integer >= {low}, not {value!r}")
@@ -120,9 +121,33 @@ def _load_config(path: str) -> dict:
     return config
 
 
-def _cmd_train(args: argparse.Namespace) -> int:
-    from avq.experiments import train
+def _print_train_summary(summary: dict) -> None:
+    ret = summary["final_return_mean"]
+    print(
+        f"{summary['agent']} on {summary['env']} (seed {summary['seed']}): {summary['episodes']} episodes, "
+        f"{summary['env_steps']} env steps, {summary['n_cells']} cells, mean return of the last 10% "
+        f"{'-' if ret is None else f'{ret:.2f}'}, {summary['wall_s']:.1f} s -> {summary['out']}"
+    )
 
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from avq.experiments import resume_train, train
+
+    if args.resume:
+        given = [flag for flag, value in (("--env", args.env), ("--agent", args.agent), ("--episodes", args.episodes),
+                                          ("--timesteps", args.timesteps), ("--seed", args.seed), ("--out", args.out),
+                                          ("--set", args.set), ("--env-kwargs", args.env_kwargs),
+                                          ("--config", args.config), ("--checkpoint-every", args.checkpoint_every))
+                 if value is not None]
+        if given:
+            raise UsageError(f"--resume continues a run as its config.yml says; drop {given[0]}")
+        if not os.path.isdir(args.resume):
+            raise UsageError(f"--resume {args.resume}: no such run directory")
+        summary = resume_train(args.resume, progress=not args.no_progress)
+        if summary.get("already_finished"):
+            print(f"{args.resume} is already finished; nothing to do")
+        _print_train_summary(summary)
+        return 0
     config = _load_config(args.config) if args.config else {}
     env_id = args.env or config.get("env")
     if not env_id:
@@ -136,15 +161,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if episodes is None and timesteps is None:
             episodes = 500
     seed = args.seed if args.seed is not None else config.get("seed", 0)
+    every = args.checkpoint_every or config.get("checkpoint_every") or 100
     summary = train(
         env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
         env_kwargs=env_kwargs, out=args.out or config.get("out"), progress=not args.no_progress,
+        checkpoint_every=every,
     )
-    print(
-        f"{summary['agent']} on {summary['env']} (seed {summary['seed']}): {summary['episodes']} episodes, "
-        f"{summary['env_steps']} env steps, {summary['n_cells']} cells, mean return of the last 10% "
-        f"{summary['final_return_mean']:.2f}, {summary['wall_s']:.1f} s -> {summary['out']}"
-    )
+    _print_train_summary(summary)
     return 0
 
 
@@ -197,7 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr = sub.add_parser(
         "train",
         help="train one agent on any registered Gymnasium environment",
-        description="Train an agent and write config.yml, progress.csv, model.zip and summary.json into --out.",
+        description="Train an agent and write config.yml, progress.csv, checkpoint.zip, model.zip and summary.json "
+        "into --out. A stopped run continues exactly with --resume DIR.",
     )
     tr.add_argument("--env", help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0")
     tr.add_argument("--agent", help="agent name (default avq)")
@@ -209,6 +233,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter (repeatable)")
     tr.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make (repeatable)")
     tr.add_argument("--config", help="YAML file with env, env_kwargs, agent, params, seed, episodes|timesteps, out")
+    tr.add_argument("--checkpoint-every", type=_positive_int("--checkpoint-every"), metavar="N",
+                    help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
+    tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
     tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tr.set_defaults(func=_cmd_train)
 

@@ -12,12 +12,14 @@ from typing import Any, Callable, Sequence
 import gymnasium as gym
 import numpy as np
 
-from avq.agents.base import _atomic_write_bytes
+from avq._io import ProgressLog, atomic_write_bytes
+from avq.agents.base import PROGRESS_COLUMNS, check_int
 from avq.agents.registry import AGENTS, make_agent
 from avq.envs.layouts import LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
 
-__all__ = ["ReproduceRun", "train_maze_run", "reproduce", "train", "evaluate_run", "make_env", "read_run_config"]
+__all__ = ["ReproduceRun", "train_maze_run", "reproduce", "train", "resume_train", "evaluate_run", "make_env",
+           "read_run_config"]
 
 
 @dataclass
@@ -145,7 +147,7 @@ def reproduce(
             "env_steps": [r.env_steps for r in runs],
             "wall_s": [round(r.wall_s, 3) for r in runs],
         }
-    _atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
+    atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
 
     from avq.agents.base import load
     from avq.plotting import plot_learning_curves, plot_partition
@@ -196,9 +198,6 @@ def format_table(summary: dict[str, Any]) -> str:
 
 # -- single training runs (``avq train`` / ``avq evaluate``) -------------------------------------------
 
-PROGRESS_COLUMNS = ("episode", "steps", "return", "n_cells", "appends", "merges", "wall_s")
-
-
 def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
     """``gymnasium.make`` with errors a user can act on (ValueError naming the id or argument)."""
     import avq.envs  # noqa: F401  (registers avq's environments)
@@ -218,23 +217,6 @@ def default_run_dir(env_id: str, agent: str, seed: int | None) -> Path:
     return Path("runs") / f"{env_part}__{agent}__{seed}__{int(time.time())}"
 
 
-class _ProgressWriter:
-    """Appends one CSV row per episode and flushes it, so a stopped run keeps its rows."""
-
-    def __init__(self, path: Path) -> None:
-        self._f = open(path, "w", newline="", encoding="utf-8")
-        self._f.write(",".join(PROGRESS_COLUMNS) + "\n")
-        self._f.flush()
-
-    def __call__(self, agent: Any, record: dict[str, Any]) -> None:
-        row = [record.get(k, "") for k in PROGRESS_COLUMNS]
-        self._f.write(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in row) + "\n")
-        self._f.flush()
-
-    def close(self) -> None:
-        self._f.close()
-
-
 def train(
     env_id: str,
     agent: str = "avq",
@@ -246,12 +228,14 @@ def train(
     env_kwargs: dict[str, Any] | None = None,
     out: str | os.PathLike | None = None,
     progress: bool = True,
+    checkpoint_every: int = 100,
 ) -> dict[str, Any]:
     """Train one agent on one environment and write the run directory.
 
     Writes ``config.yml`` (everything needed to rerun: ``avq train --config``),
-    ``progress.csv`` (one row per episode), ``model.zip`` and ``summary.json``.
-    Returns the summary.
+    ``progress.csv`` (one row per episode) and ``checkpoint.zip`` every
+    ``checkpoint_every`` episodes (so that :func:`resume_train` can continue a
+    stopped run exactly), then ``model.zip`` and ``summary.json``. Returns the summary.
     """
     import yaml
 
@@ -261,11 +245,14 @@ def train(
         raise ValueError("give exactly one of episodes or timesteps")
     if params and "seed" in params:
         raise ValueError("seed is not an agent parameter here: give it as seed= (on the command line, --seed)")
+    check_int("checkpoint_every", checkpoint_every, 1)
     env = make_env(env_id, env_kwargs)
     model = make_agent(agent, env, seed=seed, **(params or {}))
     out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)
     if (out / "model.zip").exists():
         raise ValueError(f"{out} already holds a trained run; choose another --out")
+    if (out / "checkpoint.zip").exists():
+        raise ValueError(f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
     config = {
@@ -275,32 +262,67 @@ def train(
         "params": _plain(agent_params),
         "seed": seed,
         **({"episodes": int(episodes)} if episodes is not None else {"timesteps": int(timesteps)}),
+        "checkpoint_every": int(checkpoint_every),
         "avq_version": __version__,
     }
-    _atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
-    writer = _ProgressWriter(out / "progress.csv")
-    t0 = time.perf_counter()
-    try:
-        model.learn(total_episodes=episodes, total_timesteps=timesteps, callback=writer, progress_bar=progress)
-    finally:
-        writer.close()
-    wall = time.perf_counter() - t0
+    atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
+    return _run_to_the_end(model, out, config, progress)
+
+
+def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str, Any]:
+    """Continue a run of :func:`train` that was stopped, from its last checkpoint.
+
+    The result is bit for bit what the run would have given without the stop.
+    A finished run is left as it is (its summary is returned); a run stopped
+    before its first checkpoint starts again from the beginning.
+    """
+    out = Path(run_dir)
+    config = read_run_config(out)
+    if (out / "model.zip").exists() and (out / "summary.json").exists():
+        return {**json.loads((out / "summary.json").read_text(encoding="utf-8")), "already_finished": True}
+    for key in ("episodes", "timesteps"):
+        if config.get(key) is not None:
+            check_int(f"{out / 'config.yml'}: {key}", config[key], 1)
+    if (config.get("episodes") is None) == (config.get("timesteps") is None):
+        raise ValueError(f"{out / 'config.yml'}: needs exactly one of 'episodes' or 'timesteps'")
+    for leftover in out.glob(".*.tmp"):  # temporary files of writes that a kill interrupted
+        leftover.unlink()
+    env = make_env(config["env"], config.get("env_kwargs"))
+    checkpoint = out / "checkpoint.zip"
+    if checkpoint.exists():
+        from avq.agents.base import load
+
+        model = load(checkpoint, env=env)
+    else:
+        model = make_agent(config["agent"], env, seed=config.get("seed"), **(config.get("params") or {}))
+    return _run_to_the_end(model, out, config, progress)
+
+
+def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: bool) -> dict[str, Any]:
+    """Learn what is left of the run's budget with checkpoints; write progress, model and summary."""
+    every = int(config.get("checkpoint_every") or 100)
+    if config.get("episodes") is not None:
+        left = {"total_episodes": max(0, int(config["episodes"]) - model.num_episodes)}
+    else:
+        left = {"total_timesteps": max(0, int(config["timesteps"]) - model.num_timesteps)}
+    model.learn(**left, progress_bar=progress, checkpoint_every=every, checkpoint_dir=out)
+    ProgressLog(out / "progress.csv", PROGRESS_COLUMNS).sync(model.history_)
     model.save(out / "model.zip")
     hist = model.episode_history()
     rets = hist.get("return", np.zeros(0))
     tail = rets[-max(1, len(rets) // 10):] if len(rets) else rets
     summary = {
-        "env": env_id,
-        "agent": agent,
-        "seed": seed,
+        "env": config["env"],
+        "agent": config["agent"],
+        "seed": config.get("seed"),
         "episodes": int(model.num_episodes),
         "env_steps": int(model.num_timesteps),
         "n_cells": int(model.n_cells),
         "final_return_mean": float(np.mean(tail)) if len(tail) else None,
-        "wall_s": round(wall, 3),
+        "wall_s": round(model._wall_s, 3),
         "out": str(out),
     }
-    _atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
+    atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
     return summary
 
 

@@ -13,7 +13,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from avq.agents.base import BaseAgent, _atomic_write_bytes
+from avq._io import atomic_write_bytes
+from avq.agents.base import BaseAgent
 
 __all__ = ["plot_partition", "plot_learning_curves", "smooth", "mean_ci95"]
 
@@ -33,7 +34,7 @@ def _save(fig, path: str | os.PathLike) -> Path:
     path = Path(path)
     buf = io.BytesIO()
     fig.savefig(buf, format=path.suffix.lstrip(".") or "png", dpi=150, bbox_inches="tight")
-    _atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(path, buf.getvalue())
     return path
 
 

@@ -72,6 +72,21 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
         block[:, 1:-1] = rows
         block[:, -1] = wall_s
 
+    def as_array(self) -> np.ndarray:
+        """A copy of the records, one row per episode, columns in :data:`HISTORY_FIELDS` order."""
+        return self._data[: self._n].copy()
+
+    @classmethod
+    def from_array(cls, data: np.ndarray) -> "EpisodeHistory":
+        """The history held in ``data`` (as returned by :meth:`as_array`), checked."""
+        data = np.asarray(data)
+        if data.ndim != 2 or data.shape[1] != len(HISTORY_FIELDS) or not np.issubdtype(data.dtype, np.floating):
+            raise ValueError(f"array history has shape {data.shape} and dtype {data.dtype}; "
+                             f"expected (episodes, {len(HISTORY_FIELDS)}) floats")
+        history = cls()
+        history._reserve(len(data))[:] = data
+        return history
+
     def columns(self) -> dict[str, np.ndarray]:
         """Every field as an array (``int64`` or ``float64``); empty when no episode finished."""
         if self._n == 0:

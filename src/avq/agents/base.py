@@ -12,7 +12,6 @@ import inspect
 import io
 import json
 import os
-import tempfile
 import time
 import zipfile
 from pathlib import Path
@@ -22,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._io import ProgressLog, atomic_write_bytes
 from avq.agents._history import EpisodeHistory
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
@@ -37,6 +37,8 @@ _AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
 
 #: The fields every agent records per episode (``episode`` and ``wall_s`` are added by ``learn``).
 RECORD_FIELDS = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
+#: The columns of ``progress.csv``.
+PROGRESS_COLUMNS = ("episode", "steps", "return", "n_cells", "appends", "merges", "wall_s")
 
 
 def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any = 0, refused: Any = 0,
@@ -108,29 +110,6 @@ def _space_to_json(space: spaces.Space) -> dict[str, Any]:
             "high": np.asarray(space.high, dtype=np.float64).ravel().tolist(),
         }
     return {"type": type(space).__name__}
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that a crash leaves the old file or the new one."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 class BaseAgent:
@@ -214,6 +193,8 @@ class BaseAgent:
         total_timesteps: int | None = None,
         callback: Callback | None = None,
         progress_bar: bool = False,
+        checkpoint_every: int | None = None,
+        checkpoint_dir: str | os.PathLike | None = None,
     ) -> "BaseAgent":
         """Learn for a number of episodes or of primitive environment steps.
 
@@ -226,6 +207,13 @@ class BaseAgent:
             total_timesteps: Number of primitive environment steps to take in this call.
             callback: ``callback(agent, record)`` after every episode; ``False`` stops.
             progress_bar: Show a tqdm progress bar.
+            checkpoint_every: Every this many episodes (counted from the agent's
+                first episode), save the agent to ``checkpoint_dir/checkpoint.zip``
+                and bring ``checkpoint_dir/progress.csv`` (one row per episode) up
+                to date, both written so that a crash leaves a complete file.
+                Loading the checkpoint (:func:`avq.load`) and learning on gives
+                bit for bit what learning on without the stop would have given.
+            checkpoint_dir: Where checkpoints go; required with ``checkpoint_every``.
 
         Returns:
             self
@@ -238,6 +226,15 @@ class BaseAgent:
             check_int("total_timesteps", total_timesteps, 0)
         if callback is not None and not callable(callback):
             raise TypeError("callback must be callable as callback(agent, record)")
+        if (checkpoint_every is None) != (checkpoint_dir is None):
+            raise ValueError("give checkpoint_every and checkpoint_dir together")
+        every = None if checkpoint_every is None else int(check_int("checkpoint_every", checkpoint_every, 1))
+        checkpoint = None
+        if checkpoint_dir is not None:
+            checkpoint = Path(checkpoint_dir)
+            if checkpoint.exists() and not checkpoint.is_dir():
+                raise ValueError(f"checkpoint_dir {checkpoint} is a file; give a directory")
+            log = ProgressLog(checkpoint / "progress.csv", PROGRESS_COLUMNS)
         if not self._is_setup:
             self._setup()
             self._is_setup = True
@@ -257,11 +254,11 @@ class BaseAgent:
                 if fused is not None and (self._in_episode or self._env_seed is None):
                     # Many steps and episodes in one compiled call (see AVQSarsa's fused loops).
                     chunk = 1 if callback is not None else (64 if bar is not None else 1 << 16)
+                    budget = episodes_left if episodes_left is not None else 1 << 62
+                    if every is not None:  # stop at the next checkpoint
+                        budget = min(budget, every - self.num_episodes % every)
                     n, rows, self._in_episode = fused(
-                        steps_left if steps_left is not None else 1 << 62,
-                        episodes_left if episodes_left is not None else 1 << 62,
-                        chunk,
-                    )
+                        steps_left if steps_left is not None else 1 << 62, budget, chunk)
                     self.num_timesteps += n
                     if steps_left is not None:
                         steps_left -= n
@@ -279,8 +276,11 @@ class BaseAgent:
                         episodes_left -= len(rows)
                         if bar is not None:
                             bar.update(len(rows))
-                    if callback is not None and any(
-                            callback(self, self.history_[k]) is False for k in range(first, len(self.history_))):
+                    stop = callback is not None and any(
+                        callback(self, self.history_[k]) is False for k in range(first, len(self.history_)))
+                    if every is not None and len(rows) and not self._in_episode and self.num_episodes % every == 0:
+                        self._checkpoint(checkpoint, log)
+                    if stop:
                         break
                     continue
                 if not self._in_episode:
@@ -307,13 +307,20 @@ class BaseAgent:
                         episodes_left -= 1
                         if bar is not None:
                             bar.update(1)
-                    if callback is not None and callback(self, record) is False:
+                    stop = callback is not None and callback(self, record) is False
+                    if every is not None and self.num_episodes % every == 0:
+                        self._checkpoint(checkpoint, log)
+                    if stop:
                         break
         finally:
             self._wall_s += time.perf_counter() - t0
             if bar is not None:
                 bar.close()
         return self
+
+    def _checkpoint(self, directory: Path, log: "ProgressLog") -> None:
+        log.sync(self.history_)
+        self.save(directory / "checkpoint.zip")
 
     def episode_history(self) -> dict[str, np.ndarray]:
         """The per-episode records as columns (one array per field; empty before the first episode)."""
@@ -366,20 +373,40 @@ class BaseAgent:
     # -- saving -------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """JSON-able counters and the learned arrays; subclasses extend."""
+        env_rng = getattr(self.env.unwrapped, "_np_random", None)
         meta = {
             "num_timesteps": self.num_timesteps,
             "num_episodes": self.num_episodes,
+            "wall_s": self._wall_s,
             "rng": self._rng.bit_generator.state,
+            "predict_rng": self._predict_rng.bit_generator.state,
+            # The environment's generator, so that resets after loading draw what they would have drawn.
+            "env_seed": self._env_seed,
+            "env_rng": env_rng.bit_generator.state if isinstance(env_rng, np.random.Generator) else None,
         }
-        return meta, {}
+        return meta, {"history": self.history_.as_array()}
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         self.num_timesteps = int(meta["num_timesteps"])
         self.num_episodes = int(meta["num_episodes"])
+        self._wall_s = float(meta.get("wall_s", 0.0))
         self._rng.bit_generator.state = meta["rng"]
-        # The environment's random state is not saved: seed the next reset from the agent's seed
-        # and the episodes done, so that continuing a loaded agent is reproducible.
-        self._env_seed = int(np.random.SeedSequence([self.seed or 0, self.num_episodes]).generate_state(1)[0])
+        if "predict_rng" in meta:
+            self._predict_rng.bit_generator.state = meta["predict_rng"]
+        history = arrays.get("history")
+        if history is not None:
+            self.history_ = EpisodeHistory.from_array(history)
+            if len(self.history_) != self.num_episodes:
+                raise ValueError(f"the history holds {len(self.history_)} episodes, the counters {self.num_episodes}")
+        if meta.get("env_seed") is not None:
+            self._env_seed = int(meta["env_seed"])  # saved before the first reset
+        elif meta.get("env_rng") is not None:
+            bit_generator = getattr(np.random, meta["env_rng"]["bit_generator"])()
+            bit_generator.state = meta["env_rng"]
+            self.env.unwrapped.np_random = np.random.Generator(bit_generator)
+            self._env_seed = None
+        else:  # no generator saved: seed the next reset from the agent's seed and the episodes done
+            self._env_seed = int(np.random.SeedSequence([self.seed or 0, self.num_episodes]).generate_state(1)[0])
 
     def save(self, path: str | os.PathLike) -> Path:
         """Save parameters (JSON) and learned arrays (``.npz``) in one zip file.
@@ -412,7 +439,7 @@ class BaseAgent:
         with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("meta.json", json.dumps(meta, indent=1))
             zf.writestr("arrays.npz", buf.getvalue())
-        _atomic_write_bytes(path, out.getvalue())
+        atomic_write_bytes(path, out.getvalue())
         return path
 
     @classmethod

@@ -1,0 +1,106 @@
+"""Exact resume: learning N + M episodes straight equals N, a checkpoint, a new process, and M more."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import avq
+from avq._io import ProgressLog
+
+CASES = [  # (agent, env id, episodes before the stop, episodes after, extra parameters)
+    ("avq-paper", "avq/GridMaze-v0", 500, 500, {}),           # fused loop
+    ("avq", "avq/GridMaze-v0", 60, 40, {"fused": False}),      # generic loop on the same maze
+    ("tabular", "avq/GridMaze-v0", 500, 500, {}),
+    ("avq", "MountainCar-v0", 4, 3, {}),
+    ("grid", "MountainCar-v0", 4, 3, {}),
+    ("tiles", "MountainCar-v0", 4, 3, {}),
+]
+
+
+def _saved(path):
+    """Everything a saved agent holds except wall-clock times."""
+    import json
+    import zipfile
+
+    with zipfile.ZipFile(path) as zf:
+        meta = json.loads(zf.read("meta.json"))
+        with np.load(zf.open("arrays.npz")) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    meta["state"].pop("wall_s")
+    arrays["history"] = np.delete(arrays["history"], -1, axis=1)  # the wall_s column
+    return meta, arrays
+
+
+@pytest.mark.parametrize(("name", "env_id", "first", "then", "extra"), CASES)
+def test_resume_in_a_new_process_is_bit_for_bit(tmp_path, name, env_id, first, then, extra):
+    straight = avq.make_agent(name, gym.make(env_id), seed=3, **extra)
+    straight.learn(total_episodes=first + then)
+    straight.save(tmp_path / "straight.zip")
+
+    stopped = avq.make_agent(name, gym.make(env_id), seed=3, **extra)
+    stopped.learn(total_episodes=first, checkpoint_every=first, checkpoint_dir=tmp_path / "ckpt")
+    script = textwrap.dedent(f"""
+        import gymnasium as gym, avq
+        agent = avq.load({str(tmp_path / "ckpt" / "checkpoint.zip")!r}, env=gym.make({env_id!r}))
+        agent.learn(total_episodes={then})
+        agent.save({str(tmp_path / "resumed.zip")!r})
+    """)
+    subprocess.run([sys.executable, "-c", script], check=True)
+
+    meta_a, arrays_a = _saved(tmp_path / "straight.zip")
+    meta_b, arrays_b = _saved(tmp_path / "resumed.zip")
+    assert meta_a == meta_b  # parameters, counters and every generator's state
+    assert arrays_a.keys() == arrays_b.keys()
+    for key in arrays_a:
+        assert np.array_equal(arrays_a[key], arrays_b[key]), key
+
+
+def test_checkpoints_land_every_n_episodes_with_the_progress_rows(tmp_path):
+    agent = avq.make_agent("avq-paper", gym.make("avq/GridMaze-v0"), seed=0)
+    seen = []
+    agent.learn(total_episodes=25, checkpoint_every=10, checkpoint_dir=tmp_path,
+                callback=lambda a, r: seen.append((r["episode"], (tmp_path / "checkpoint.zip").exists())))
+    assert avq.load(tmp_path / "checkpoint.zip").num_episodes == 20
+    rows = (tmp_path / "progress.csv").read_text().splitlines()
+    assert rows[0] == "episode,steps,return,n_cells,appends,merges,wall_s"
+    assert [int(r.split(",")[0]) for r in rows[1:]] == list(range(1, 21))
+    assert [int(r.split(",")[1]) for r in rows[1:]] == [h["steps"] for h in agent.history_[:20]]
+    assert seen[9] == (10, False) and seen[10] == (11, True)  # saved right after episode 10
+
+
+def test_checkpoint_arguments_are_checked(tmp_path):
+    agent = avq.make_agent("tabular", gym.make("avq/GridMaze-v0"), seed=0)
+    with pytest.raises(ValueError, match="together"):
+        agent.learn(total_episodes=1, checkpoint_every=5)
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        agent.learn(total_episodes=1, checkpoint_every=0, checkpoint_dir=tmp_path)
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(ValueError, match="is a file"):
+        agent.learn(total_episodes=1, checkpoint_every=1, checkpoint_dir=tmp_path / "f")
+
+
+def _history(n):
+    return [{"episode": k + 1, "steps": 10 + k, "return": -1.5} for k in range(n)]
+
+
+def test_progress_log_repairs_a_torn_line_and_drops_rows_past_the_checkpoint(tmp_path):
+    path = tmp_path / "progress.csv"
+    log = ProgressLog(path, ("episode", "steps", "return"))
+    log.sync(_history(3))
+    assert path.read_text() == "episode,steps,return\n1,10,-1.5\n2,11,-1.5\n3,12,-1.5\n"
+    with open(path, "a") as f:
+        f.write("4,13,-1.5\n5,1")  # a row written after the checkpoint, and one cut by a crash
+    ProgressLog(path, ("episode", "steps", "return")).sync(_history(3))
+    assert path.read_text() == "episode,steps,return\n1,10,-1.5\n2,11,-1.5\n3,12,-1.5\n"
+    log = ProgressLog(path, ("episode", "steps", "return"))
+    log.sync(_history(5))
+    assert path.read_text().splitlines()[-1] == "5,14,-1.5"
+    (tmp_path / "other.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="not a progress file"):
+        ProgressLog(tmp_path / "other.csv", ("episode",)).sync(_history(1))
