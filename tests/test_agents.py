@@ -238,20 +238,25 @@ def test_load_names_a_space_mismatch_before_anything_else(tmp_path):
         avq.load(path, env=gym.make("CartPole-v1"))
 
 
+@pytest.mark.parametrize("name", ["avq", "tabular", "grid", "tiles"])
 @pytest.mark.parametrize(("bad_step", "where"), [
     (((np.nan, 1.0), -1.0, False, False, False), "observation"),
+    (((1.0, -np.inf), -1.0, False, False, False), "observation"),
     (((1.0, 1.0), np.inf, False, False, False), "reward"),
+    (((1.0, 1.0), np.nan, False, False, False), "reward"),
 ])
-def test_avq_names_the_step_of_a_non_finite_observation_or_reward(scripted, bad_step, where):
+def test_every_agent_names_the_step_of_a_non_finite_observation_or_reward(scripted, name, bad_step, where):
     good = ((1.0, 0.0), -1.0, False, False, False)
     env = scripted([((0.0, 0.0), [good, good, bad_step, good])])
-    agent = AVQSarsa(env, seed=0)
+    agent = make_agent(name, env, seed=0)
     with pytest.raises(ValueError, match=rf"{where} .* at step 3 of episode 1 is not finite"):
         agent.learn(total_episodes=1)
-    assert agent.n_cells >= 1 and np.isfinite(agent.q_).all()
+    arrays = agent._state_dict()[1]
+    assert all(np.isfinite(a).all() for a in arrays.values())
 
 
-def test_avq_refuses_a_non_finite_first_observation(scripted):
+@pytest.mark.parametrize("name", ["avq", "tabular", "grid", "tiles"])
+def test_every_agent_refuses_a_non_finite_first_observation(scripted, name):
     env = scripted([((np.nan, 0.0), [((1.0, 0.0), -1.0, True, False, False)])])
     with pytest.raises(ValueError, match="at step 0 of episode 1 is not finite"):
-        AVQSarsa(env, seed=0).learn(total_episodes=1)
+        make_agent(name, env, seed=0).learn(total_episodes=1)

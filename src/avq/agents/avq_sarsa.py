@@ -215,17 +215,11 @@ class AVQSarsa(BaseAgent):
             raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._V.shape[1:]}")
         return x
 
-    def _not_finite(self, x: np.ndarray, r: Any, step: int) -> None:
-        what = f"reward {r!r}" if not np.isfinite(r) else f"observation {x.tolist()!r}"
-        raise ValueError(f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
-                         "avq learns only from finite observations and rewards (check the environment, "
-                         "or wrap it to end the episode instead)")
-
     # -- the episode loop (SPEC §2, §5; the rules are in avq.agents._avq_core) --------------
     def _begin_episode(self, obs: np.ndarray) -> None:
         x = self._as_obs(obs, 0)
         if not np.isfinite(x).all():
-            self._not_finite(x, 0.0, 0)
+            self._refuse_non_finite(x, 0.0, 0)
         self._ensure_capacity(1)
         cell = core.begin_episode(*self._state(), x)
         self._S[core.ACTION] = epsilon_greedy(self._Q[cell], self.epsilon, self._rng)
@@ -253,7 +247,7 @@ class AVQSarsa(BaseAgent):
             j = core.observe(*state, x, float(r), bool(info.get("collision", False)), done)
             if j < 0:
                 if j == core.NOT_FINITE:
-                    self._not_finite(x, r, int(S[core.EP_STEPS]) + 1)
+                    self._refuse_non_finite(x, r, int(S[core.EP_STEPS]) + 1)
                 continue
             if not terminated:
                 a = epsilon_greedy(state[1][j], eps, rng)

@@ -11,9 +11,11 @@ from __future__ import annotations
 import inspect
 import io
 import json
+import math
 import os
 import time
 import zipfile
+import zlib
 from pathlib import Path
 from typing import Any, Callable, ClassVar
 
@@ -185,6 +187,17 @@ class BaseAgent:
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         raise NotImplementedError
+
+    def _check_finite(self, obs: Any, r: Any, step: int) -> None:
+        """Refuse an observation or reward that is NaN or infinite, naming the step (0: the reset)."""
+        if not (math.isfinite(r) and np.isfinite(obs).all()):
+            self._refuse_non_finite(obs, r, step)
+
+    def _refuse_non_finite(self, obs: Any, r: Any, step: int) -> None:
+        what = f"reward {r!r}" if not math.isfinite(r) else f"observation {np.asarray(obs).tolist()!r}"
+        raise ValueError(f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
+                         "avq learns only from finite observations and rewards (check the environment, "
+                         "or wrap it to end the episode instead)")
 
     # -- learning -----------------------------------------------------------------------
     def learn(
@@ -458,7 +471,8 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
             raw = zf.read("arrays.npz")
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no such model file") from None
-    except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError, OSError, EOFError) as exc:
+    except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError, OSError, EOFError,
+            zlib.error) as exc:
         raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
         raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
@@ -470,8 +484,16 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError, zlib.error) as exc:
         raise ValueError(f"{path}: the model's arrays are unreadable ({exc})") from None
+    for name, arr in arrays.items():
+        if arr.dtype.kind not in "biuf":
+            raise ValueError(f"{path}: array {name!r} has dtype {arr.dtype}; a model holds only numbers")
+        if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+            raise ValueError(f"{path}: array {name!r} holds NaN or infinite values")
+    for key, kind in (("params", dict), ("state", dict), ("class", str)):
+        if not isinstance(meta.get(key), kind):
+            raise ValueError(f"{path}: the model's header has no valid {key!r}")
     return meta, arrays
 
 
@@ -505,11 +527,14 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
         have = _space_to_json(getattr(env, key))
         if want != have:
             raise ValueError(f"{path}: the model was saved for {key} {want}, but env has {have}")
-    agent = cls(env, **params)
+    try:
+        agent = cls(env, **params)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: the saved parameters are not valid for {cls.__name__} ({exc})") from None
     agent._setup()
     agent._is_setup = True
     try:
         agent._load_state_dict(meta["state"], arrays)
-    except (KeyError, ValueError, IndexError) as exc:
+    except (KeyError, ValueError, IndexError, TypeError, AttributeError) as exc:
         raise ValueError(f"{path}: the model's state is incomplete or inconsistent ({exc})") from None
     return agent

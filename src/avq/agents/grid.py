@@ -168,6 +168,7 @@ class GridSarsa(BaseAgent):
         self._ep_steps = 0
         self._ep_return = 0.0
         self._ep_new = 0
+        self._check_finite(obs, 0.0, 0)
         self._ep_row = self._row(obs)
         self._ep_action = epsilon_greedy(self._q[self._ep_row], self.epsilon, self._rng)
 
@@ -181,6 +182,7 @@ class GridSarsa(BaseAgent):
         while n < max_steps:
             obs, r, terminated, truncated, _ = env.step(a)
             n += 1
+            self._check_finite(obs, r, self._ep_steps + n)
             r = float(r)
             self._ep_return += r
             if terminated:

@@ -127,6 +127,7 @@ class TabularSarsa(BaseAgent):
         self._ep_steps = 0
         self._ep_return = 0.0
         self._ep_new = 0
+        self._check_finite(obs, 0.0, 0)
         self._ep_state = self._row(obs)
         self._ep_action = epsilon_greedy(self._q[self._ep_state], self.epsilon, self._rng)
 
@@ -140,6 +141,7 @@ class TabularSarsa(BaseAgent):
         while n < max_steps:
             obs, r, terminated, truncated, _ = env.step(a)
             n += 1
+            self._check_finite(obs, r, self._ep_steps + n)
             r = float(r)
             self._ep_return += r
             s2 = self._row(obs)

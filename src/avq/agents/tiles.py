@@ -169,6 +169,7 @@ class TileSarsa(BaseAgent):
         self._ep_return = 0.0
         self._ep_used0 = self._coder.n_used
         self._ep_overflows0 = self._coder.overflows
+        self._check_finite(obs, 0.0, 0)
         self._ep_active = self._features(obs)
         self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
 
@@ -182,6 +183,7 @@ class TileSarsa(BaseAgent):
         while n < max_steps:
             obs, r, terminated, truncated, _ = env.step(a)
             n += 1
+            self._check_finite(obs, r, self._ep_steps + n)
             r = float(r)
             self._ep_return += r
             q_sa = self._values(active)[a]

@@ -1,0 +1,197 @@
+"""A conformance check for agents, in the spirit of scikit-learn's ``check_estimator``.
+
+``check_agent("tabular")`` runs every check below on a freshly made agent and
+raises an ``AssertionError`` naming the first one that fails::
+
+    from avq.checks import check_agent
+    check_agent("avq", env_id="MountainCar-v0")
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from avq.agents.base import BaseAgent
+from avq.agents.registry import AGENTS, make_agent
+
+__all__ = ["check_agent", "CHECKS"]
+
+#: Parameters every agent takes, with a value outside the allowed range.
+_BAD_VALUES = {"alpha": -0.5, "gamma": 1.5, "epsilon": 2.0, "lam": -1.0, "seed": -1}
+
+
+class _Case:
+    """Makes agents of one kind on fresh environments."""
+
+    def __init__(self, agent: str | type[BaseAgent], env_id: str, env_kwargs: dict[str, Any], params: dict[str, Any],
+                 episodes: int) -> None:
+        self.agent, self.env_id, self.env_kwargs, self.params, self.episodes = agent, env_id, env_kwargs, params, episodes
+
+    def env(self) -> gym.Env:
+        import avq.envs  # noqa: F401  (registers avq's environments)
+
+        return gym.make(self.env_id, **self.env_kwargs)
+
+    def make(self, seed: int = 0, **extra: Any) -> BaseAgent:
+        params = {**self.params, **extra}
+        if isinstance(self.agent, str):
+            return make_agent(self.agent, self.env(), seed=seed, **params)
+        return self.agent(self.env(), seed=seed, **params)
+
+
+def _learned(agent: BaseAgent) -> dict[str, np.ndarray]:
+    """Every learned array, the history without its wall-clock column, and the counters."""
+    arrays = dict(agent._state_dict()[1])
+    arrays["history"] = arrays["history"][:, :-1]
+    arrays["counters"] = np.array([agent.num_timesteps, agent.num_episodes])
+    arrays["rng"] = np.array([agent._rng.random()])  # the stream's next draw, from a copy below
+    return arrays
+
+
+def _snapshot(agent: BaseAgent) -> dict[str, np.ndarray]:
+    state = agent._rng.bit_generator.state
+    try:
+        return _learned(agent)
+    finally:
+        agent._rng.bit_generator.state = state
+
+
+def _assert_same(a: dict[str, np.ndarray], b: dict[str, np.ndarray], what: str) -> None:
+    assert a.keys() == b.keys(), f"{what}: the learned arrays differ in names ({sorted(a)} != {sorted(b)})"
+    for key in a:
+        assert a[key].shape == b[key].shape and np.array_equal(a[key], b[key]), f"{what}: {key!r} differs"
+
+
+def _observations(case: _Case, n: int = 16) -> np.ndarray:
+    space = case.env().observation_space
+    space.seed(0)
+    return np.stack([np.asarray(space.sample(), dtype=np.float64) for _ in range(n)])
+
+
+def check_parameters(case: _Case) -> None:
+    """Construction checks each shared hyper-parameter and names it; get_params round-trips."""
+    agent = case.make()
+    params = agent.get_params()
+    for name, bad in _BAD_VALUES.items():
+        if name not in params:
+            continue
+        try:
+            case.make(**{name: bad}) if name != "seed" else case.make(seed=bad)
+        except ValueError as exc:
+            assert name in str(exc), f"the error for {name}={bad!r} does not name the parameter: {exc}"
+        else:
+            raise AssertionError(f"{name}={bad!r} was accepted")
+    again = type(agent)(case.env(), **params)
+    assert again.get_params() == params, "get_params() does not round-trip through the constructor"
+    assert type(agent).__name__ in repr(agent)
+
+
+def check_seeding(case: _Case) -> None:
+    """Same seed, same result; another seed, another result."""
+    a = case.make(seed=11).learn(total_episodes=case.episodes)
+    b = case.make(seed=11).learn(total_episodes=case.episodes)
+    _assert_same(_snapshot(a), _snapshot(b), "two runs with the same seed")
+    c = case.make(seed=12).learn(total_episodes=case.episodes)
+    assert any(not np.array_equal(x, y) for x, y in zip(_snapshot(a).values(), _snapshot(c).values())), \
+        "two different seeds gave identical results"
+
+
+def check_additive_learn(case: _Case) -> None:
+    """learn(a) then learn(b) equals learn(a + b), in episodes and in steps (stopping inside an episode)."""
+    whole = case.make(seed=5).learn(total_episodes=case.episodes)
+    parts = case.make(seed=5)
+    first = max(1, case.episodes // 2)
+    parts.learn(total_episodes=first).learn(total_episodes=case.episodes - first)
+    _assert_same(_snapshot(whole), _snapshot(parts), "learn in two calls (episodes)")
+    steps = whole.num_timesteps
+    by_steps = case.make(seed=5)
+    by_steps.learn(total_timesteps=steps // 3).learn(total_timesteps=steps - steps // 3)
+    assert by_steps.num_timesteps == steps
+    _assert_same(_snapshot(whole), _snapshot(by_steps), "learn in two calls (steps)")
+
+
+def check_predict(case: _Case) -> None:
+    """predict: errors before learning; one action per observation, single or batched; queries change nothing."""
+    fresh = case.make()
+    try:
+        fresh.predict(_observations(case, 1)[0])
+    except RuntimeError:
+        pass
+    else:
+        raise AssertionError("predict before learn did not raise RuntimeError")
+    agent = case.make(seed=3).learn(total_episodes=case.episodes)
+    before = _snapshot(agent)
+    obs = _observations(case)
+    n_actions = agent.env.action_space.n
+    batch, state = agent.predict(obs)
+    assert state is None and batch.shape == (len(obs),) and batch.dtype == np.int64
+    assert ((batch >= 0) & (batch < n_actions)).all()
+    for k in range(len(obs)):
+        single, _ = agent.predict(obs[k])
+        assert isinstance(single, int) and single == batch[k], "single and batched predictions differ"
+    explore, _ = agent.predict(obs, deterministic=False)
+    assert ((explore >= 0) & (explore < n_actions)).all()
+    _assert_same(before, _snapshot(agent), "predict changed the agent")
+    for bad in (np.zeros(obs.shape[1] + 1), np.full(obs.shape[1], np.nan)):
+        try:
+            agent.predict(bad)
+        except ValueError:
+            pass
+        else:
+            raise AssertionError(f"predict accepted the bad observation {bad!r}")
+
+
+def check_save_load(case: _Case) -> None:
+    """A save/load round trip is exact, and the loaded agent learns on exactly as the original."""
+    from avq.agents.base import load
+
+    agent = case.make(seed=4).learn(total_episodes=case.episodes)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = agent.save(Path(tmp) / "agent.zip")
+        loaded = load(path, env=case.env())
+    assert type(loaded) is type(agent) and loaded.get_params() == agent.get_params()
+    _assert_same(_snapshot(agent), _snapshot(loaded), "save/load round trip")
+    obs = _observations(case)
+    assert np.array_equal(agent.predict(obs)[0], loaded.predict(obs)[0]), "predictions differ after loading"
+    agent.learn(total_episodes=2)
+    loaded.learn(total_episodes=2)
+    _assert_same(_snapshot(agent), _snapshot(loaded), "learning on after loading")
+
+
+#: Every check, in the order they run.
+CHECKS: dict[str, Callable[[_Case], None]] = {
+    "parameters": check_parameters,
+    "seeding": check_seeding,
+    "additive_learn": check_additive_learn,
+    "predict": check_predict,
+    "save_load": check_save_load,
+}
+
+
+def check_agent(agent: str | type[BaseAgent], env_id: str = "avq/GridMaze-v0", *,
+                env_kwargs: dict[str, Any] | None = None, params: dict[str, Any] | None = None,
+                episodes: int = 4) -> list[str]:
+    """Run every check in :data:`CHECKS` on an agent; return their names, or raise ``AssertionError``.
+
+    Args:
+        agent: A registry name (see ``avq.AGENTS``) or an agent class.
+        env_id: A registered Gymnasium id with a Discrete action space.
+        env_kwargs: Arguments to ``gymnasium.make``.
+        params: Agent parameters for every agent made.
+        episodes: Episodes each check trains for.
+    """
+    if isinstance(agent, str) and agent not in AGENTS:
+        raise ValueError(f"unknown agent {agent!r}; known agents: {', '.join(sorted(AGENTS))}")
+    case = _Case(agent, env_id, dict(env_kwargs or {}), dict(params or {}), episodes)
+    for name, check in CHECKS.items():
+        try:
+            check(case)
+        except AssertionError as exc:
+            raise AssertionError(f"{agent} failed the {name!r} check: {exc}") from None
+    return list(CHECKS)
