@@ -139,3 +139,28 @@ def test_config_values_of_the_wrong_type(tmp_path):
     cfg.write_text("env: avq/GridMaze-v0\nepisodes: -3\n")
     proc = run_cli("train", "--config", str(cfg))
     assert proc.returncode == 2 and "'episodes' must be an integer >= 1" in proc.stderr
+
+
+def test_resume_mistakes_exit_2_and_leave_the_run_as_it_was(tmp_path):
+    run = tmp_path / "run"
+    proc = run_cli("train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "30",
+                   "--checkpoint-every", "10", "--out", str(run), "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    (run / "model.zip").unlink()  # as if stopped after its last checkpoint
+    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    cases = [
+        (["train", "--resume", str(tmp_path / "nowhere")], "no such run directory"),
+        (["train", "--resume", str(run), "--episodes", "5"], "drop --episodes"),
+        (["train", "--resume", str(tmp_path)], "no config.yml"),
+        (["train", "--env", "avq/GridMaze-v0", "--out", str(run)], "--resume"),
+        (["train", "--env", "avq/GridMaze-v0", "--checkpoint-every", "0"], "--checkpoint-every must be >= 1"),
+    ]
+    for args, needle in cases:
+        proc = run_cli(*args, cwd=tmp_path)
+        assert proc.returncode == 2, (args, proc.stderr)
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and needle in lines[0] and "Traceback" not in proc.stderr, (args, proc.stderr)
+    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+    (run / "checkpoint.zip").write_bytes(b"garbage")
+    proc = run_cli("train", "--resume", str(run))
+    assert proc.returncode == 2 and "checkpoint.zip" in proc.stderr and "Traceback" not in proc.stderr
