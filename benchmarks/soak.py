@@ -26,6 +26,7 @@ Matplotlib is imported only after the run, so it does not count in the memory fi
     python benchmarks/soak.py --steps 50000000 --every 1000000 --csv /tmp/s.csv --figure /tmp/s.png
 
 By default it writes docs/data/soak.csv and docs/figures/soak.png (``--no-files``: print only).
+MB here means 2**20 bytes. Results of a run are described in docs/SOAK.md.
 """
 
 from __future__ import annotations
@@ -200,13 +201,13 @@ def draw(rows: list[dict], info: dict, seed: int, path: Path) -> None:
     col = {k: np.array([r[k] for r in rows], dtype=float) for k in COLUMNS}
     fig, axes = plt.subplots(4, 1, figsize=(7.5, 9.5), sharex=True)
     ax = axes[0]
-    ax.plot(x, col["rss_mb"], label="RSS")
-    ax.plot(x, col["peak_rss_mb"], "--", label="peak RSS")
-    ax.plot(x, col["rss_anon_mb"], label="anonymous RSS")
-    ax.plot(x, col["rss_mb"][0] + col["history_alloc_mb"] - col["history_alloc_mb"][0], ":",
-            label="first RSS + history growth")
-    ax.set_ylabel("memory (MB)")
-    ax.legend(fontsize=8, loc="lower right")
+    for key, style, label in (("rss_mb", "-", "RSS"), ("peak_rss_mb", "--", "peak RSS"),
+                              ("rss_anon_mb", "-.", "anonymous RSS"), ("history_mb", ":", "episode history written")):
+        ax.plot(x, col[key] - col[key][0], style, label=label)
+    ax.set_ylabel("MB since the\nfirst checkpoint")
+    ax.set_title(f"memory: RSS {col['rss_mb'][0]:.1f} MB at the first checkpoint, {col['rss_mb'][-1]:.1f} MB "
+                 f"at the last (peak {col['peak_rss_mb'][-1]:.1f} MB)", fontsize=9)
+    ax.legend(fontsize=8, loc="upper left")
     ax = axes[1]
     ax.plot(x, col["n_cells"], color="C2")
     ax.set_ylabel("cells")
@@ -239,7 +240,7 @@ def pick(rows: list[dict], k: int = 8) -> list[dict]:
 
 
 def print_table(rows: list[dict]) -> None:
-    head = (f"{'steps':>11} {'episodes':>9} {'wall s':>7} {'RSS MB':>7} {'peak MB':>8} {'anon MB':>8} {'hist MB':>8} "
+    head = (f"{'steps':>11} {'episodes':>9} {'wall s':>7} {'RSS MB':>7} {'peak MB':>8} {'anon MB':>8} {'hist buf':>8} "
             f"{'cells':>6} {'Q min':>9} {'Q max':>8} {'finite':>6} {'refused':>7} {'return':>8} {'succ %':>6}")
     print(head)
     for r in rows:
@@ -259,7 +260,9 @@ def verdict(rows: list[dict], info: dict) -> list[str]:
     hist_grow = last["history_alloc_mb"] - half["history_alloc_mb"]
     hist_need = last["history_mb"] - half["history_mb"]
     agent_grow = last["agent_arrays_mb"] - half["agent_arrays_mb"]
-    other = grow - hist_grow - agent_grow
+    # The history buffer is zero-filled on allocation, so only the rows written so far are resident:
+    # the bytes needed, not the bytes allocated, are what RSS should follow.
+    other = grow - hist_need - agent_grow
     max_cells = max(r["n_cells"] for r in rows)
     cells_half = max(r["n_cells"] for r in rows if r["steps"] <= half["steps"])
     finite = all(r["finite"] for r in rows)
@@ -268,8 +271,9 @@ def verdict(rows: list[dict], info: dict) -> list[str]:
         f"memory: RSS {half['rss_mb']:.1f} MB at {half['steps']:,} steps -> {last['rss_mb']:.1f} MB at "
         f"{last['steps']:,}: {grow:+.2f} MB ({pct:+.2f}%) over the second half; peak {last['peak_rss_mb']:.1f} MB; "
         f"anonymous RSS {anon_grow:+.2f} MB",
-        f"        of which episode history {hist_grow:+.2f} MB allocated ({hist_need:+.2f} MB needed: "
-        f"{eps_half:,} episodes x 72 B), codebook arrays {agent_grow:+.3f} MB, the rest {other:+.2f} MB",
+        f"        episode history: {hist_need:+.2f} MB written ({eps_half:,} episodes x 72 B; its buffer, "
+        f"grown by doubling, {hist_grow:+.2f} MB); codebook arrays {agent_grow:+.3f} MB; "
+        f"RSS growth not explained by these: {other:+.2f} MB",
         f"cells:  max {max_cells} (by the half-way point: {cells_half}; final {last['n_cells']}); "
         f"max_cells = {info['max_cells']}; refused appends: {last['refused']}",
         f"values: Q in [{last['q_min']:.2f}, {last['q_max']:.2f}] at the end; "
@@ -280,7 +284,9 @@ def verdict(rows: list[dict], info: dict) -> list[str]:
         "verdict: memory "
         + ("bounded apart from the per-episode history (which grows linearly by design)" if mem_ok
            else "grows beyond what the history explains: investigate")
-        + "; codebook " + ("bounded" if max_cells < info["max_cells"] and last["refused"] == 0
+        + "; codebook " + (f"bounded ({max_cells} cells at most, {100 * max_cells / info['max_cells']:.1f}% of "
+                           f"max_cells; {last['n_cells'] - half['n_cells']:+d} over the second half)"
+                           if max_cells < info["max_cells"] and last["refused"] == 0
                            else "at its max_cells bound (appends refused)")
         + ("; values finite" if finite else "; values NOT finite")
     )
