@@ -10,6 +10,7 @@ from avq import envs  # noqa: E402,F401  (registers the environments)
 from avq.agents import AGENTS, AVQSarsa, BaseAgent, GridSarsa, TabularSarsa, TileSarsa, load, make_agent  # noqa: E402
 from avq.evaluation import evaluate_maze  # noqa: E402
 from avq.quantizer import Codebook  # noqa: E402
+from avq.sweep import sweep  # noqa: E402
 
 __all__ = [
     "AVQSarsa",
@@ -22,5 +23,6 @@ __all__ = [
     "make_agent",
     "load",
     "evaluate_maze",
+    "sweep",
     "__version__",
 ]

@@ -194,6 +194,35 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from avq.sweep import report, sweep
+
+    if args.target[0] == "report":
+        if len(args.target) != 2:
+            raise UsageError("usage: avq sweep report DIR [--metric NAME]")
+        for flag, value in (("--out", args.out), ("--address", args.address), ("--jobs", args.jobs)):
+            if value is not None:
+                raise UsageError(f"avq sweep report takes no {flag}")
+        print(report(args.target[1], metric=args.metric))
+        return 0
+    if len(args.target) != 1:
+        raise UsageError(f"avq sweep takes one config file, not {' '.join(args.target)}")
+    if not args.out:
+        raise UsageError("--out DIR is required: the sweep writes its trials and results there")
+    if args.metric is not None:
+        raise UsageError("--metric is for 'avq sweep report DIR'; set 'metric' in the config for the default")
+    if not os.path.isfile(args.target[0]):
+        raise UsageError(f"no such sweep config: {args.target[0]}")
+    rows = sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
+                 progress=not args.no_progress)
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"{len(rows) - len(failed)} of {len(rows)} trials finished, {len(failed)} failed -> "
+          f"{os.path.join(args.out, 'results.csv')}, {os.path.join(args.out, 'curves.png')}")
+    for r in failed[:5]:
+        print(f"  failed: {r['trial']}: {r['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="avq", description="Reinforcement learning with adaptive vector quantization.")
     from avq import __version__
@@ -238,6 +267,24 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
     tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tr.set_defaults(func=_cmd_train)
+
+    sw = sub.add_parser(
+        "sweep",
+        help="run a grid of configurations x seeds, locally or on a Ray or Dask cluster",
+        description="avq sweep CONFIG.yml --out DIR runs every trial not yet finished in DIR and writes "
+        "DIR/results.csv and DIR/curves.png (exit code 1 if a trial failed); "
+        "avq sweep report DIR ranks the configurations.",
+    )
+    sw.add_argument("target", nargs="+", metavar="CONFIG.yml | report DIR")
+    sw.add_argument("--out", help="the sweep's directory")
+    sw.add_argument("--backend", choices=["local", "ray", "dask"], default="local",
+                    help="local processes (default), a Ray cluster or a Dask cluster")
+    sw.add_argument("--address", help="cluster address (ray: as for ray.init; dask: the scheduler); "
+                    "without one a local cluster is started")
+    sw.add_argument("--jobs", type=_positive_int("--jobs"), help="parallel workers (default: CPU count)")
+    sw.add_argument("--metric", help="report: the metric to rank by (default: the config's, else final_return)")
+    sw.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    sw.set_defaults(func=_cmd_sweep)
 
     ev = sub.add_parser("evaluate", help="evaluate a trained run's greedy policy",
                         description="Load DIR/model.zip and report the mean and spread of the return.")
