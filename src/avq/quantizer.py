@@ -78,9 +78,18 @@ class Codebook:
         if self.size > _TREE_THRESHOLD:
             from scipy.spatial import cKDTree
 
+            # The tree finds the nearest few; exact distances among them then pick the lowest index on
+            # ties, as nearest() does. A query whose candidates all tie may tie with more: brute force.
+            k = min(4, self.size)
             tree = cKDTree(self.vectors * self.inv_scale)
-            _, idx = tree.query(xs * self.inv_scale, k=1)
-            return np.asarray(idx, dtype=np.int64)
+            _, cand = tree.query(xs * self.inv_scale, k=k)
+            cand = np.asarray(cand, dtype=np.int64).reshape(len(xs), k)
+            d2 = (((self.vectors[cand] - xs[:, None, :]) * self.inv_scale) ** 2).sum(axis=2)
+            best = d2.min(axis=1, keepdims=True)
+            out = np.where(d2 == best, cand, self.size).min(axis=1)
+            for q in np.flatnonzero((d2 == best).all(axis=1)):
+                out[q] = self.nearest(xs[q])[0]
+            return out
         out = np.empty(len(xs), dtype=np.int64)
         y = self.vectors * self.inv_scale
         for start in range(0, len(xs), 1024):
