@@ -592,3 +592,20 @@ def test_ansi_marks_the_robot_square():
     env.reset()
     assert env.render().splitlines()[1] == "#R...........#"
     assert RobotMaze(SMALL).render() is None
+
+
+@pytest.mark.parametrize("name", ["avq", "grid"])
+def test_evaluate_maze_walks_in_lockstep_exactly_as_stepping_the_env(name):
+    import avq
+    from avq.evaluation import evaluate_maze
+
+    agent = avq.make_agent(name, gym.make("avq/RobotMaze-v0"), seed=1).learn(total_episodes=40)
+    result = evaluate_maze(agent, gym.make("avq/RobotMaze-v0"))
+    base = gym.make("avq/RobotMaze-v0").unwrapped
+    for outcome in result["outcomes"]:
+        obs, _ = base.reset(options={"start": outcome["start"]})
+        steps, success = 0, False
+        while steps < base.max_steps and not success:
+            obs, _, success, _, _ = base.step(agent.predict(obs)[0])
+            steps += 1
+        assert (outcome["success"], outcome["steps"]) == (success, steps), outcome["start"]

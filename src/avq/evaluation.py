@@ -10,6 +10,7 @@ from numba import njit
 
 from avq.agents.base import BaseAgent
 from avq.envs.grid_maze import GridMaze, grid_move
+from avq.envs.robot_maze import RobotMaze, robot_move, sonar_ranges
 
 __all__ = ["evaluate_maze", "evaluate_policy", "success_rule", "SUCCESS_RULES"]
 
@@ -29,6 +30,52 @@ def _greedy_walks(walls, gx, gy, policy, starts, limit):
                 success[k] = True
                 break
         steps[k] = n
+    return success, steps
+
+
+@njit(cache=True)
+def _robot_observations(grid, xs, ys, radius, dirs, sonar_range, observe_sonar, out):
+    """RobotMaze's observation at each position (float32 values, as the environment gives them)."""
+    sonar = np.empty(dirs.shape[0])
+    for k in range(xs.shape[0]):
+        out[k, 0] = np.float32(xs[k])
+        out[k, 1] = np.float32(ys[k])
+        if observe_sonar:
+            sonar_ranges(grid, xs[k], ys[k], radius, dirs, sonar_range, sonar)
+            for j in range(sonar.shape[0]):
+                out[k, 2 + j] = np.float32(sonar[j])
+
+
+@njit(cache=True)
+def _robot_moves(grid, xs, ys, actions, move, radius, gx, gy, terminated):
+    """One move of each robot, in place."""
+    for k in range(xs.shape[0]):
+        xs[k], ys[k], _, terminated[k], _ = robot_move(grid, xs[k], ys[k], actions[k], move, radius, gx, gy)
+
+
+def _robot_walks(agent: BaseAgent, base: RobotMaze, starts: list[tuple[float, float]], limit: int):
+    """All greedy walks of a noise-free RobotMaze in lockstep: one batched ``predict`` per step."""
+    xs = np.array([p[0] for p in starts], dtype=np.float64)
+    ys = np.array([p[1] for p in starts], dtype=np.float64)
+    k = len(starts)
+    success = np.zeros(k, dtype=bool)
+    steps = np.zeros(k, dtype=np.int64)
+    alive = np.arange(k)
+    n_obs = 2 + (base._dirs.shape[0] if base.observe_sonar else 0)
+    for _ in range(limit):
+        if len(alive) == 0:
+            break
+        obs = np.empty((len(alive), n_obs), dtype=np.float32)
+        ax, ay = xs[alive], ys[alive]
+        _robot_observations(base._grid, ax, ay, base.radius, base._dirs, base.sonar_range, base.observe_sonar, obs)
+        actions, _ = agent.predict(obs.astype(np.float64), deterministic=True)
+        terminated = np.zeros(len(alive), dtype=np.bool_)
+        _robot_moves(base._grid, ax, ay, np.asarray(actions, dtype=np.int64), base.move, base.radius,
+                     base._gx, base._gy, terminated)
+        xs[alive], ys[alive] = ax, ay
+        steps[alive] += 1
+        success[alive[terminated]] = True
+        alive = alive[~terminated]
     return success, steps
 
 
@@ -87,6 +134,11 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         walks = np.array(starts, dtype=np.int64).reshape(-1, 2)
         success, steps = _greedy_walks(np.ascontiguousarray(layout.walls), layout.goal[0], layout.goal[1],
                                        policy, walks, limit)
+        outcomes = [{"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
+                    for start, ok, n, best in zip(starts, success, steps, shortest)]
+    elif type(base) is RobotMaze and base.sonar_noise == 0.0:
+        # The same walks as stepping the environment, all at once, with the maze's own compiled move.
+        success, steps = _robot_walks(agent, base, starts, limit)
         outcomes = [{"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
                     for start, ok, n, best in zip(starts, success, steps, shortest)]
     for start, best in ([] if outcomes else zip(starts, shortest)):
