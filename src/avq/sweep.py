@@ -259,7 +259,6 @@ def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, 
     t0 = time.perf_counter()
     model = make_agent(agent, make_env(env, env_kwargs), seed=seed, **params)
     model.learn(total_episodes=episodes, total_timesteps=timesteps)
-    wall = time.perf_counter() - t0
     progress = out / "progress.csv"
     if progress.exists():
         progress.unlink()  # left by an interrupted attempt: this attempt rewrites every row
@@ -272,7 +271,7 @@ def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, 
         "final_return": float(np.mean(tail)) if len(tail) else None,
         "eval_return": None, "success_rate": None, "path_ratio": None,
         "n_cells": int(model.n_cells), "env_steps": int(model.num_timesteps), "episodes": int(model.num_episodes),
-        "wall_s": round(wall, 3),
+        "wall_s": None,
     }
     if eval_episodes:
         eval_env = make_env(env, env_kwargs)
@@ -282,6 +281,7 @@ def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, 
         if hasattr(eval_env.unwrapped, "layout") and hasattr(eval_env.unwrapped.layout, "distances"):
             maze = evaluate_maze(model, make_env(env, env_kwargs))
             summary["success_rate"], summary["path_ratio"] = maze["success_rate"], maze["path_ratio"]
+    summary["wall_s"] = round(time.perf_counter() - t0, 3)  # training, evaluation and saving
     atomic_write_bytes(done, json.dumps(summary, indent=2).encode())
     return summary
 
