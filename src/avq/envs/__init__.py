@@ -5,10 +5,10 @@ from __future__ import annotations
 import gymnasium as gym
 
 from avq.envs.grid_maze import GridMaze
-from avq.envs.layouts import MAPS, Layout, load_layout, parse_layout
+from avq.envs.layouts import MAPS, Layout, load_layout, parse_layout, random_layout
 from avq.envs.robot_maze import RobotMaze
 
-__all__ = ["GridMaze", "RobotMaze", "MAPS", "Layout", "load_layout", "parse_layout", "register_envs"]
+__all__ = ["GridMaze", "RobotMaze", "MAPS", "Layout", "load_layout", "parse_layout", "random_layout", "register_envs"]
 
 
 def register_envs() -> None:

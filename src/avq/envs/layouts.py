@@ -15,7 +15,8 @@ from typing import Sequence, Union
 
 import numpy as np
 
-__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS", "check_start"]
+__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS",
+           "check_start", "random_layout"]
 
 #: Colours of the maze renderings (RGB).
 COLOURS = {
@@ -240,3 +241,53 @@ def check_start(layout: Layout, start: str) -> None:
         raise ValueError(
             f"layout {layout.name}: start='fixed' needs an 'S' in the layout; add one or use start='random'"
         )
+
+
+def random_layout(width: int, height: int, wall_density: float = 0.25, seed: int | None = 0,
+                  max_segment: int | None = None) -> list[str]:
+    """A random maze of ``width`` x ``height`` squares (border included), seeded and reproducible.
+
+    Wall segments of random length (1 to ``max_segment`` squares, default a
+    quarter of the larger side) and direction are dropped at random places inside
+    the border. A segment is kept only if the free squares stay connected, so
+    every free square has a path to the goal. Segments are added until
+    ``wall_density`` of the inner squares are walls, or until many tries in a row
+    fail (then the density reached is a little below the target). The goal is a
+    random free square. Returns the rows (``#`` wall, ``.`` free, ``G`` goal), ready
+    for ``gymnasium.make("avq/GridMaze-v0", layout=...)`` or RobotMaze.
+    """
+    from scipy.ndimage import label
+
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 3:
+            raise ValueError(f"{name} must be an integer >= 3 (the border takes two squares), not {value!r}")
+    if isinstance(wall_density, bool) or not isinstance(wall_density, (int, float)) or not 0.0 <= wall_density <= 0.6:
+        raise ValueError(f"wall_density must be a number in [0, 0.6], not {wall_density!r}")
+    rng = np.random.default_rng(seed)
+    inner_w, inner_h = int(width) - 2, int(height) - 2
+    longest = int(max_segment) if max_segment is not None else max(1, max(inner_w, inner_h) // 4)
+    if longest < 1:
+        raise ValueError(f"max_segment must be >= 1, not {max_segment!r}")
+    inner = np.zeros((inner_h, inner_w), dtype=bool)
+    target = int(round(wall_density * inner.size))
+    count, failures = 0, 0
+    while count < target and failures < 200:
+        length = int(rng.integers(1, longest + 1))
+        y, x = int(rng.integers(inner_h)), int(rng.integers(inner_w))
+        trial = inner.copy()
+        if rng.random() < 0.5:
+            trial[y, x : x + length] = True
+        else:
+            trial[y : y + length, x] = True
+        added = int(trial.sum()) - count
+        if added == 0 or count + added > inner.size - 2 or label(~trial)[1] != 1:
+            failures += 1
+            continue
+        inner, count, failures = trial, count + added, 0
+    walls = np.ones((int(height), int(width)), dtype=bool)
+    walls[1:-1, 1:-1] = inner
+    free = np.argwhere(~walls)
+    gy, gx = (int(v) for v in free[int(rng.integers(len(free)))])
+    rows = ["".join("#" if walls[y, x] else "." for x in range(int(width))) for y in range(int(height))]
+    rows[gy] = rows[gy][:gx] + "G" + rows[gy][gx + 1:]
+    return rows
