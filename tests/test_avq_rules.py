@@ -320,3 +320,23 @@ def test_merge_age_keeps_young_cells_apart():
     assert agent.n_cells == 2 and agent.history_[0]["merges"] == 0
     agent.learn(total_episodes=1)  # now 1 complete episode old
     assert agent.n_cells == 1 and agent.history_[1]["merges"] == 1
+
+
+@pytest.mark.parametrize(("q1", "same_action_guard", "merged"), [
+    ([-1.0, -1.2], True, True),    # both prefer action 0: the guard lets them merge
+    ([-1.2, -1.0], True, False),   # cell 0 prefers 0, cell 1 prefers 1: the guard keeps them apart
+    ([-1.2, -1.0], False, True),   # the paper merges on the profile difference alone
+])
+def test_merge_same_action_guard(q1, same_action_guard, merged):
+    from avq.agents import _avq_core as core
+
+    ep = ((0, 0), [((3, 0), -10, NO, True, True)])
+    agent, _ = agent_for([ep], rho=100.0, merge_every=0, merge_same_action=same_action_guard)
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 2
+    agent._Q[0, :2] = [-1.0, -1.1]          # greedy action 0
+    agent._Q[1, :2] = q1                     # msd with row 0 is at most 0.02 < rho
+    n = core.merge_pass(*agent._state()[:10])
+    assert (n == 1) == merged and agent.n_cells == (1 if merged else 2)
+    if merged:
+        assert np.allclose(agent.q_[0], (np.array([-1.0, -1.1]) + np.array(q1)) / 2)

@@ -41,8 +41,8 @@ from avq.rules import collision_rule, may_append, mean_square_difference
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG = range(10)
 N_P = 10
 # IP: int parameters
-REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS = range(4)
-N_IP = 4
+REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION = range(5)
+N_IP = 5
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM = range(10)
 N_S = 10
@@ -282,6 +282,8 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
         if IP[MERGE_AGE] > 0:
             if S[EPISODES] - born[i] < IP[MERGE_AGE] or S[EPISODES] - born[j] < IP[MERGE_AGE]:
                 continue
+        if IP[MERGE_SAME_ACTION] and np.argmax(Q[i]) != np.argmax(Q[j]):
+            continue
         keep[k] = True
         n_keep += 1
     if n_keep == 0:

@@ -45,6 +45,9 @@ class AVQSarsa(BaseAgent):
         merge_age: A cell may merge only after this many complete episodes of its own
             (0, the paper: at once). Cells made by the value-change trigger start as
             copies of their parent, so without an age they would merge back at once.
+        merge_same_action: Merge a pair only if both cells have the same greedy action
+            (beyond the paper: a merge then never changes the action taken anywhere in
+            the two cells; the paper merges on similar profiles alone).
         value_trigger: TD-error magnitude ``theta`` that appends the transition's end
             state (SPEC §3, optional trigger), terminal states included (a cell at a
             failure state sharpens the partition where it matters); None turns it off.
@@ -100,6 +103,7 @@ class AVQSarsa(BaseAgent):
         traces: str = "replacing",
         merge_every: int = 1,
         merge_age: int = 0,
+        merge_same_action: bool = False,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
@@ -114,6 +118,9 @@ class AVQSarsa(BaseAgent):
         self.chi = check_range("chi", chi, -np.inf, 0.0, low_open=True, high_open=True)
         self.merge_every = check_int("merge_every", merge_every, 0)
         self.merge_age = check_int("merge_age", merge_age, 0)
+        if not isinstance(merge_same_action, (bool, np.bool_)):
+            raise ValueError(f"merge_same_action must be True or False, not {merge_same_action!r}")
+        self.merge_same_action = bool(merge_same_action)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -185,8 +192,8 @@ class AVQSarsa(BaseAgent):
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
-        IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS]] = (
-            self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells)
+        IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION]] = (
+            self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action)
         self._P, self._IP = P, IP
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
