@@ -340,3 +340,57 @@ def test_merge_same_action_guard(q1, same_action_guard, merged):
     assert (n == 1) == merged and agent.n_cells == (1 if merged else 2)
     if merged:
         assert np.allclose(agent.q_[0], (np.array([-1.0, -1.1]) + np.array(q1)) / 2)
+
+
+# -- beyond the paper: collision split and merging on ties -------------------------------------
+
+@pytest.mark.parametrize("split", [False, True])
+def test_collision_split_keeps_a_greedy_action_for_the_rest_of_the_cell(split):
+    # Episode 1 teaches Q[0, a1] = 4.5 (two steps in cell 0, R = 9, terminal, alpha 0.5).
+    # Episode 2: greedy a1 bumps at (0.5, 0), within d_min of y_0.
+    # Paper: Q[0, a1] = chi = -4, then delta = -10 + Q[0, a2] - (-4) = -6, Q[0, a1] = -7; one cell.
+    # Split: (0.5, 0) becomes cell 1 = copy of cell 0 with Q[1, a1] = chi; then a' = a2 at cell 1
+    # (0 > -4), delta = -10 + 0 - 4.5 = -14.5 and Q[0, a1] = 4.5 - 7.25 = -2.75, still above Q[1, a1].
+    ep1 = ((0, 0), [((0.2, 0), -1, NO, NO, NO), ((0.4, 0), 10, True, NO, NO)])
+    ep2 = ((0, 0), [((0.5, 0), -10, NO, True, True)])
+    agent, env = agent_for([ep1, ep2], collision_split=split)
+    agent.learn(total_episodes=2)
+    a1 = env.actions[0][0]
+    assert env.actions[1][0] == a1  # greedy
+    if split:
+        assert agent.codebook_.tolist() == [[0, 0], [0.5, 0]]
+        assert agent.q_[0, a1] == -2.75 and agent.q_[1, a1] == -4.0
+        assert agent.q_[1, 1 - a1] == agent.q_[0, 1 - a1] == 0.0
+        assert agent.history_[1]["appends"] == 1
+    else:
+        assert agent.codebook_.tolist() == [[0, 0]] and agent.q_[0, a1] == -7.0
+
+
+def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
+    # A bump exactly at y_0 (distance 0) cannot be split off: chi for the cell, as in the paper.
+    ep1 = ((0, 0), [((0.2, 0), -1, NO, NO, NO), ((0.4, 0), 10, True, NO, NO)])
+    ep2 = ((0, 0), [((0, 0), -10, NO, True, True)])
+    agent, env = agent_for([ep1, ep2], collision_split=True)
+    agent.learn(total_episodes=2)
+    assert agent.n_cells == 1 and agent.q_[0, env.actions[0][0]] == -7.0
+
+
+def test_merge_ties_pairs_a_tied_nearest_by_lowest_index():
+    from avq._kernels import mutual_nearest_pairs_kernel
+    from avq.agents import _avq_core as core
+
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    one = np.ones(2)
+    # Vector 1 is equally near 0 and 2: the paper's strict rule finds no pair; the tie rule pairs (0, 1).
+    assert mutual_nearest_pairs_kernel(line, 3, one).tolist() == []
+    assert mutual_nearest_pairs_kernel(line, 3, one, False).tolist() == [[0, 1]]
+    for ties, merged in ((False, 0), (True, 1)):
+        agent, _ = agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], rho=100.0, merge_ties=ties)
+        agent.learn(total_episodes=1)
+        agent._ensure_capacity(3)
+        agent._V[:3], agent._Q[:3] = line, 0.0
+        agent._S[core.SIZE] = 3
+        agent._S[core.GEOM] += 1
+        assert core.merge_pass(*agent._state()[:10]) == merged
+        if merged:
+            assert agent.codebook_.tolist() == [[0.5, 0.0], [2.0, 0.0]]

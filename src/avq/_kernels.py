@@ -86,19 +86,24 @@ def neighbours_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray):
 
 
 @njit(cache=True, nogil=True)
-def mutual_nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray) -> np.ndarray:
-    """Pairs ``(i, j)``, ``i < j``, each the other's unique nearest vector (SPEC §4, Fig. 2's strict <)."""
+def mutual_nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray,
+                                strict: bool = True) -> np.ndarray:
+    """Pairs ``(i, j)``, ``i < j``, each the other's unique nearest vector (SPEC §4, Fig. 2's strict <).
+
+    With ``strict=False`` a tie for the nearest goes to the lowest index instead of
+    blocking the pair (beyond the paper: on integer grids, ties are common).
+    """
     nn, d1, d2 = neighbours_kernel(vectors, size, inv_scale)
     count = 0
     for i in range(size):
         j = nn[i]
-        if j > i and d1[i] < d2[i] and d1[j] < d2[j] and nn[j] == i:
+        if j > i and nn[j] == i and (not strict or (d1[i] < d2[i] and d1[j] < d2[j])):
             count += 1
     out = np.empty((count, 2), dtype=np.int64)
     k = 0
     for i in range(size):
         j = nn[i]
-        if j > i and d1[i] < d2[i] and d1[j] < d2[j] and nn[j] == i:
+        if j > i and nn[j] == i and (not strict or (d1[i] < d2[i] and d1[j] < d2[j])):
             out[k, 0] = i
             out[k, 1] = j
             k += 1

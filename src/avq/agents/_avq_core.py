@@ -41,8 +41,8 @@ from avq.rules import collision_rule, may_append, mean_square_difference
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG = range(10)
 N_P = 10
 # IP: int parameters
-REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION = range(5)
-N_IP = 5
+REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_TIES = range(7)
+N_IP = 7
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM = range(10)
 N_S = 10
@@ -202,7 +202,13 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
         # SPEC §3, collision rule (avq.rules.collision_rule).
         dist_i = dist_j if j == i else scaled_distance(V, i, x, inv_scale)
         outcome = collision_rule(dist_i, dist_j, P[DMIN])
-        if outcome == CHI_OUTCOME:
+        if outcome == CHI_OUTCOME and IP[COLLISION_SPLIT] and dist_i > 0.0 and np.argmax(Q[i]) == a \
+                and Q[i, a] > P[CHI] and S[SIZE] < IP[MAX_CELLS]:
+            # Beyond the paper: the cell's greedy action hit a wall here but is still the best one
+            # elsewhere in the cell; instead of condemning it for the whole cell, split x off.
+            j = _append(V, Q, E, born, S, x, i)
+            Q[j, a] = P[CHI]
+        elif outcome == CHI_OUTCOME:
             Q[i, a] = P[CHI]
         elif outcome == APPEND_OUTCOME and _may_append(dist_j, P, IP, S):
             j = _append(V, Q, E, born, S, x, i)
@@ -267,7 +273,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     """
     size = S[SIZE]
     if pc[0, 0] != S[GEOM]:  # the geometry changed since the pairs were found
-        found = mutual_nearest_pairs_kernel(V, size, inv_scale)
+        found = mutual_nearest_pairs_kernel(V, size, inv_scale, IP[MERGE_TIES] == 0)
         pc[0, 0] = S[GEOM]
         pc[0, 1] = found.shape[0]
         pc[1 : 1 + found.shape[0], :] = found

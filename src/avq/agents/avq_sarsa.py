@@ -45,6 +45,15 @@ class AVQSarsa(BaseAgent):
         merge_age: A cell may merge only after this many complete episodes of its own
             (0, the paper: at once). Cells made by the value-change trigger start as
             copies of their parent, so without an age they would merge back at once.
+        collision_split: Beyond the paper: on a collision within ``d_min`` of the
+            cell's own vector, where the paper sets ``Q[i, a] = chi`` for the whole
+            cell, split instead when ``a`` is the cell's greedy action and ``x`` is not
+            the vector itself: append ``x`` as a copy of the cell with ``Q[c, a] = chi``.
+            A cell then keeps an action that is right for most of it, and the squares
+            where it hits a wall get cells of their own.
+        merge_ties: Beyond the paper: a tie for the nearest vector goes to the lowest
+            index instead of blocking the pair from merging (SPEC §4 reads Fig. 2's
+            strict ``<``; on integer grids ties are common).
         merge_same_action: Merge a pair only if both cells have the same greedy action
             (beyond the paper: a merge then never changes the action taken anywhere in
             the two cells; the paper merges on similar profiles alone).
@@ -104,6 +113,8 @@ class AVQSarsa(BaseAgent):
         merge_every: int = 1,
         merge_age: int = 0,
         merge_same_action: bool = False,
+        merge_ties: bool = False,
+        collision_split: bool = False,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
@@ -121,6 +132,11 @@ class AVQSarsa(BaseAgent):
         if not isinstance(merge_same_action, (bool, np.bool_)):
             raise ValueError(f"merge_same_action must be True or False, not {merge_same_action!r}")
         self.merge_same_action = bool(merge_same_action)
+        for name, value in (("merge_ties", merge_ties), ("collision_split", collision_split)):
+            if not isinstance(value, (bool, np.bool_)):
+                raise ValueError(f"{name} must be True or False, not {value!r}")
+        self.merge_ties = bool(merge_ties)
+        self.collision_split = bool(collision_split)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -192,8 +208,10 @@ class AVQSarsa(BaseAgent):
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
-        IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION]] = (
-            self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action)
+        IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
+            core.COLLISION_SPLIT, core.MERGE_TIES]] = (
+            self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
+            self.collision_split, self.merge_ties)
         self._P, self._IP = P, IP
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
