@@ -375,7 +375,7 @@ def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
     assert agent.n_cells == 1 and agent.q_[0, env.actions[0][0]] == -7.0
 
 
-def test_merge_ties_pairs_a_tied_nearest_by_lowest_index():
+def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
     from avq._kernels import mutual_nearest_pairs_kernel
     from avq.agents import _avq_core as core
 
@@ -384,8 +384,8 @@ def test_merge_ties_pairs_a_tied_nearest_by_lowest_index():
     # Vector 1 is equally near 0 and 2: the paper's strict rule finds no pair; the tie rule pairs (0, 1).
     assert mutual_nearest_pairs_kernel(line, 3, one).tolist() == []
     assert mutual_nearest_pairs_kernel(line, 3, one, False).tolist() == [[0, 1]]
-    for ties, merged in ((False, 0), (True, 1)):
-        agent, _ = agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], rho=100.0, merge_ties=ties)
+    for rule, merged in (("mutual", 0), ("mutual_ties", 1)):
+        agent, _ = agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], rho=100.0, merge_pairs=rule)
         agent.learn(total_episodes=1)
         agent._ensure_capacity(3)
         agent._V[:3], agent._Q[:3] = line, 0.0
@@ -394,3 +394,17 @@ def test_merge_ties_pairs_a_tied_nearest_by_lowest_index():
         assert core.merge_pass(*agent._state()[:10]) == merged
         if merged:
             assert agent.codebook_.tolist() == [[0.5, 0.0], [2.0, 0.0]]
+
+
+def test_merge_pairs_nearest_pairs_closest_first_mutual_or_not():
+    from avq._kernels import nearest_pairs_kernel
+
+    # 0 (0,0) and 1 (1,0) are 1 apart and pair first. 2 (2.5,0)'s nearest is 1 (1.5), already taken;
+    # 3 (4.5,0)'s nearest is 2 (2.0), free: pair (2, 3), although 2's own nearest is 1.
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [2.5, 0.0], [4.5, 0.0]])
+    assert nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1], [2, 3]]
+    # The paper's rule pairs only (0, 1): 2's nearest (1) is not mutual.
+    from avq._kernels import mutual_nearest_pairs_kernel
+    assert mutual_nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1]]
+    with pytest.raises(ValueError, match="merge_pairs must be one of"):
+        agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], merge_pairs="closest")

@@ -111,6 +111,27 @@ def mutual_nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.nd
 
 
 @njit(cache=True, nogil=True)
+def nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray) -> np.ndarray:
+    """Disjoint pairs ``(i, nearest of i)``, closest first, mutual or not (``i < j`` in each pair)."""
+    nn, d1, _ = neighbours_kernel(vectors, size, inv_scale)
+    order = np.argsort(d1[:size], kind="mergesort")
+    used = np.zeros(size, dtype=np.bool_)
+    out = np.empty((size // 2, 2), dtype=np.int64)
+    k = 0
+    for t in range(size):
+        i = order[t]
+        j = nn[i]
+        if j < 0 or used[i] or used[j]:
+            continue
+        used[i] = True
+        used[j] = True
+        out[k, 0] = min(i, j)
+        out[k, 1] = max(i, j)
+        k += 1
+    return out[:k]
+
+
+@njit(cache=True, nogil=True)
 def merge_kernel(vectors: np.ndarray, size: int, pairs: np.ndarray) -> np.ndarray:
     """Replace each disjoint pair ``(i, j)``, ``i < j``, by its midpoint in slot ``i``; drop slot ``j``
     and move later vectors down. Returns ``mapping[old] = new`` (both members map to one index)."""

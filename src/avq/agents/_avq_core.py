@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
-from avq._kernels import compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index
+from avq._kernels import compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index, nearest_pairs_kernel
 from avq.rules import APPEND as APPEND_OUTCOME
 from avq.rules import CHI as CHI_OUTCOME
 from avq.rules import collision_rule, may_append, mean_square_difference
@@ -41,7 +41,7 @@ from avq.rules import collision_rule, may_append, mean_square_difference
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG = range(10)
 N_P = 10
 # IP: int parameters
-REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_TIES = range(7)
+REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS = range(7)
 N_IP = 7
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM = range(10)
@@ -273,7 +273,10 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     """
     size = S[SIZE]
     if pc[0, 0] != S[GEOM]:  # the geometry changed since the pairs were found
-        found = mutual_nearest_pairs_kernel(V, size, inv_scale, IP[MERGE_TIES] == 0)
+        if IP[MERGE_PAIRS] == 2:  # "nearest"
+            found = nearest_pairs_kernel(V, size, inv_scale)
+        else:  # "mutual" (0, the paper) or "mutual_ties" (1)
+            found = mutual_nearest_pairs_kernel(V, size, inv_scale, IP[MERGE_PAIRS] == 0)
         pc[0, 0] = S[GEOM]
         pc[0, 1] = found.shape[0]
         pc[1 : 1 + found.shape[0], :] = found

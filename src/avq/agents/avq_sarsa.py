@@ -51,9 +51,12 @@ class AVQSarsa(BaseAgent):
             the vector itself: append ``x`` as a copy of the cell with ``Q[c, a] = chi``.
             A cell then keeps an action that is right for most of it, and the squares
             where it hits a wall get cells of their own.
-        merge_ties: Beyond the paper: a tie for the nearest vector goes to the lowest
-            index instead of blocking the pair from merging (SPEC §4 reads Fig. 2's
-            strict ``<``; on integer grids ties are common).
+        merge_pairs: Which pairs the merge pass considers. ``"mutual"`` (the paper,
+            SPEC §4): each the other's unique nearest vector (Fig. 2's strict ``<``).
+            ``"mutual_ties"``: a tie for the nearest goes to the lowest index instead of
+            blocking the pair (ties are common on integer grids). ``"nearest"``: each
+            cell with its nearest, mutual or not, closest pairs first, each cell in at
+            most one pair per pass.
         merge_same_action: Merge a pair only if both cells have the same greedy action
             (beyond the paper: a merge then never changes the action taken anywhere in
             the two cells; the paper merges on similar profiles alone).
@@ -113,7 +116,7 @@ class AVQSarsa(BaseAgent):
         merge_every: int = 1,
         merge_age: int = 0,
         merge_same_action: bool = False,
-        merge_ties: bool = False,
+        merge_pairs: str = "mutual",
         collision_split: bool = False,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
@@ -132,10 +135,11 @@ class AVQSarsa(BaseAgent):
         if not isinstance(merge_same_action, (bool, np.bool_)):
             raise ValueError(f"merge_same_action must be True or False, not {merge_same_action!r}")
         self.merge_same_action = bool(merge_same_action)
-        for name, value in (("merge_ties", merge_ties), ("collision_split", collision_split)):
-            if not isinstance(value, (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, not {value!r}")
-        self.merge_ties = bool(merge_ties)
+        if merge_pairs not in _MERGE_PAIRS:
+            raise ValueError(f"merge_pairs must be one of {', '.join(map(repr, _MERGE_PAIRS))}, not {merge_pairs!r}")
+        self.merge_pairs = merge_pairs
+        if not isinstance(collision_split, (bool, np.bool_)):
+            raise ValueError(f"collision_split must be True or False, not {collision_split!r}")
         self.collision_split = bool(collision_split)
         self.value_trigger = (
             None if value_trigger is None
@@ -209,9 +213,9 @@ class AVQSarsa(BaseAgent):
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
         IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-            core.COLLISION_SPLIT, core.MERGE_TIES]] = (
+            core.COLLISION_SPLIT, core.MERGE_PAIRS]] = (
             self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
-            self.collision_split, self.merge_ties)
+            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs))
         self._P, self._IP = P, IP
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
@@ -394,6 +398,10 @@ class AVQSarsa(BaseAgent):
         self._S[core.SIZE] = p
         self._S[core.EPISODES] = self.num_episodes
         self._S[core.GEOM] += 1
+
+
+#: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.
+_MERGE_PAIRS = ("mutual", "mutual_ties", "nearest")
 
 
 def _fused_plan(env: gym.Env):
