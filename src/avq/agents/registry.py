@@ -40,6 +40,18 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
              q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
              reward_trigger=None, scale=None),
     ),
+    # Beyond the paper, for tasks that report collisions (mazes, robots): the paper's
+    # collision-driven rules, plus a split where a cell's greedy action hits a wall
+    # (collision_split), and merging of any nearest pair of cells that share their greedy
+    # action (merge_pairs="nearest", merge_same_action, rho high enough to merge on the action
+    # alone), with at most 30 cells. Chosen with scripts/sweeps/ on lau2002 (docs/RESULTS.md,
+    # "Beyond the paper").
+    "avq-maze": (
+        AVQSarsa,
+        dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.5, rho=200.0, chi=-50.0,
+             q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0,
+             collision_split=True, merge_same_action=False, merge_pairs="nearest", max_cells=30),
+    ),
     "tabular": (
         TabularSarsa,
         dict(alpha=0.1, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0, traces="replacing"),
