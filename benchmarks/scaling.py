@@ -1,0 +1,113 @@
+"""Environment steps to a reliable greedy policy, against the number of states of a maze.
+
+For generated mazes (``avq.envs.random_layout``, wall density 0.2) of growing size,
+each agent learns in chunks of episodes; after every chunk its greedy policy is
+walked from every start (``avq.evaluate_maze``). The figure is the number of
+environment steps at the first evaluation with at least 95% success, and the
+cells in use then. A run that does not get there within its step budget counts
+as censored (the budget is reported instead, marked ``>``).
+
+Episodes are limited to ``4 * (width + height)`` steps. The AVQ agents get
+``max_cells`` unbounded here, so that their cell count is measured, not capped.
+
+    python benchmarks/scaling.py                 # sides 12, 22, 42, 62; 5 seeds (a few minutes)
+    python benchmarks/scaling.py --quick         # sides 12 and 22; 2 seeds
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from joblib import Parallel, delayed
+
+import avq
+from avq.envs import parse_layout, random_layout
+
+AGENTS = {"avq-maze": {"max_cells": 1_000_000}, "avq-paper": {}, "tabular": {}, "tiles": {}}
+
+
+def steps_to_success(name: str, side: int, seed: int, budget: int, target: float = 0.95) -> dict:
+    rows = random_layout(side, side, 0.2, seed=1000 + side)
+    limit = 4 * (2 * side)
+    make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit)  # noqa: E731
+    agent = avq.make_agent(name, make(), seed=seed, **AGENTS[name])
+    eval_env = make()
+    chunk = 10
+    t0 = time.perf_counter()
+    reached = False
+    success = 0.0
+    while agent.num_timesteps < budget:
+        agent.learn(total_episodes=chunk)
+        success = avq.evaluate_maze(agent, eval_env, max_steps=limit)["success_rate"]
+        if success >= target:
+            reached = True
+            break
+        chunk = min(2 * chunk, 200)
+    return {"agent": name, "side": side, "states": parse_layout(rows).n_states, "seed": seed,
+            "reached": reached, "env_steps": int(agent.num_timesteps), "cells": int(agent.n_cells),
+            "success": float(success), "wall_s": round(time.perf_counter() - t0, 2)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--seeds", type=int, default=None)
+    ap.add_argument("--budget", type=int, default=3_000_000, help="env steps per run before giving up")
+    ap.add_argument("--csv", default="docs/data/scaling.csv")
+    ap.add_argument("--figure", default="docs/figures/scaling.png")
+    args = ap.parse_args()
+    sides = (12, 22) if args.quick else (12, 22, 42, 62)
+    seeds = args.seeds or (2 if args.quick else 5)
+    jobs = [(name, side, seed) for side in sides for name in AGENTS for seed in range(seeds)]
+    print(f"{len(jobs)} runs on {os.cpu_count()} cores: sides {sides}, {seeds} seeds, budget {args.budget} steps")
+    rows = Parallel(n_jobs=-1)(delayed(steps_to_success)(n, s, sd, args.budget) for n, s, sd in jobs)
+    Path(args.csv).parent.mkdir(parents=True, exist_ok=True)
+    with open(args.csv, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    print(f"\n{'states':>7} {'agent':<10} {'steps to 95% (median)':>22} {'reached':>8} {'cells':>7}")
+    summary = {}
+    for side in sides:
+        for name in AGENTS:
+            rs = [r for r in rows if r["side"] == side and r["agent"] == name]
+            steps = np.median([r["env_steps"] for r in rs])
+            got = sum(r["reached"] for r in rs)
+            summary[(name, side)] = (rs[0]["states"], steps, got, len(rs))
+            mark = "" if got == len(rs) else ">"
+            print(f"{rs[0]['states']:>7} {name:<10} {mark + format(int(steps), ','):>22} {got:>5}/{len(rs)} "
+                  f"{int(np.median([r['cells'] for r in rs])):>7}")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for name in AGENTS:
+        pts = [summary[(name, s)] for s in sides]
+        x = [p[0] for p in pts]
+        axes[0].plot(x, [p[1] for p in pts], "o-", label=name)
+        axes[1].plot(x, [np.median([r["cells"] for r in rows if r["side"] == s and r["agent"] == name])
+                         for s in sides], "o-", label=name)
+    for ax, ylabel in zip(axes, ("env steps to 95% greedy success (median)", "cells then (median)")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("free squares of the maze")
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"Generated mazes (wall density 0.2), {seeds} seeds; runs that never reach 95% plot their budget")
+    fig.tight_layout()
+    Path(args.figure).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.figure, dpi=130)
+    print(f"\nwrote {args.csv} and {args.figure}")
+
+
+if __name__ == "__main__":
+    main()
