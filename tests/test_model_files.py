@@ -122,3 +122,30 @@ def test_pickled_arrays_are_never_unpickled(saved, tmp_path):
 def test_a_missing_file_is_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="nothing.zip"):
         avq.load(tmp_path / "nothing.zip")
+
+
+def test_loading_without_env_remakes_the_environment_with_its_make_arguments(tmp_path):
+    from avq.envs import random_layout
+
+    rows = random_layout(14, 12, 0.25, seed=3)
+    env = gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=150)
+    agent = avq.make_agent("tabular", env, seed=0).learn(total_episodes=20)
+    loaded = avq.load(agent.save(tmp_path / "m.zip"))
+    assert loaded.env.unwrapped.layout.rows == tuple(rows) and loaded.env.spec.max_episode_steps == 150
+    straight = avq.make_agent("tabular", gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=150), seed=0)
+    straight.learn(total_episodes=30)
+    loaded.learn(total_episodes=10)
+    assert np.array_equal(straight.q_, loaded.q_)
+
+
+def test_version_1_files_without_history_still_load_but_version_2_needs_it(saved, tmp_path):
+    path, agent = saved["tabular"]
+    def old(m):
+        m.update(format_version=1)
+        m.pop("env_make")
+    v1 = _rewrite(path, tmp_path / "v1.zip", meta=old, arrays=lambda a: a.pop("history"))
+    loaded = avq.load(v1, env=gym.make("avq/GridMaze-v0"))
+    assert np.array_equal(loaded.q_, agent.q_) and len(loaded.history_) == 0
+    v2 = _rewrite(path, tmp_path / "v2.zip", arrays=lambda a: a.pop("history"))
+    with pytest.raises(ValueError, match="v2.zip.*no history"):
+        avq.load(v2, env=gym.make("avq/GridMaze-v0"))

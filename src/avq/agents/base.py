@@ -28,7 +28,9 @@ from avq.agents._history import EpisodeHistory
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
+_READABLE_VERSIONS = (1, 2)
 
 #: One row of the per-episode record.
 EpisodeRecord = dict[str, Any]
@@ -52,13 +54,13 @@ def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any
     }
 
 
-def _make_env(env: gym.Env | str) -> gym.Env:
+def _make_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
     if isinstance(env, str):
         import avq.envs  # noqa: F401  (registers avq's environments)
 
         try:
-            return gym.make(env)
-        except gym.error.Error as exc:
+            return gym.make(env, **make_args)
+        except (gym.error.Error, TypeError) as exc:
             raise ValueError(f"cannot make environment {env!r}: {exc}") from None
     if not isinstance(env, gym.Env):
         raise TypeError(f"env must be a gymnasium.Env or a registered id, not {type(env).__name__}")
@@ -99,6 +101,20 @@ def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: An
     if traces not in ("replacing", "accumulating"):
         raise ValueError(f"traces must be 'replacing' or 'accumulating', not {traces!r}")
     agent.traces = traces
+
+
+def _env_make_args(env: gym.Env) -> dict[str, Any] | None:
+    """The ``gymnasium.make`` arguments that rebuild ``env`` (its kwargs and step limit), if JSON can hold them."""
+    spec = getattr(env, "spec", None)
+    if spec is None:
+        return None
+    args = dict(spec.kwargs or {})
+    if spec.max_episode_steps is not None:
+        args["max_episode_steps"] = int(spec.max_episode_steps)
+    try:
+        return json.loads(json.dumps(args))
+    except (TypeError, ValueError):
+        return None
 
 
 def _space_to_json(space: spaces.Space) -> dict[str, Any]:
@@ -444,6 +460,7 @@ class BaseAgent:
             "observation_space": _space_to_json(self.env.observation_space),
             "action_space": _space_to_json(self.env.action_space),
             "env_id": getattr(getattr(self.env, "spec", None), "id", None),
+            "env_make": _env_make_args(self.env),
             "state": state,
         }
         buf = io.BytesIO()
@@ -476,10 +493,10 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
         raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
         raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
-    if meta.get("format_version") != FORMAT_VERSION:
+    if meta.get("format_version") not in _READABLE_VERSIONS:
         raise ValueError(
             f"{path}: model format version {meta.get('format_version')} is not supported "
-            f"(this avq reads version {FORMAT_VERSION})"
+            f"(this avq reads versions {', '.join(map(str, _READABLE_VERSIONS))})"
         )
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
@@ -519,7 +536,14 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
     if env is None:
         if not meta.get("env_id"):
             raise ValueError(f"{path}: the model records no environment id; pass env= to load it")
-        env = meta["env_id"]
+        make = meta.get("env_make")
+        if meta.get("format_version", 1) >= 2 and make is None:
+            raise ValueError(f"{path}: the environment's gymnasium.make arguments could not be saved; "
+                             "pass env= to load it")
+        try:
+            env = _make_env(meta["env_id"], **(make or {}))
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}; pass env= to load it") from None
     params = dict(meta["params"])
     env = _make_env(env)
     for key in ("observation_space", "action_space"):
@@ -533,6 +557,8 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
         raise ValueError(f"{path}: the saved parameters are not valid for {cls.__name__} ({exc})") from None
     agent._setup()
     agent._is_setup = True
+    if meta["format_version"] >= 2 and "history" not in arrays:
+        raise ValueError(f"{path}: the model's state is incomplete (no history array)")
     try:
         agent._load_state_dict(meta["state"], arrays)
     except (KeyError, ValueError, IndexError, TypeError, AttributeError) as exc:
