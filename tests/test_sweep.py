@@ -204,3 +204,37 @@ def test_a_sweep_killed_and_rerun_equals_an_uninterrupted_one(local_run, tmp_pat
     done = subprocess.run(cmd, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert _table(out) == _table(local_run[0])
+
+
+def test_an_unreachable_cluster_or_a_grid_env_typo_fails_before_anything_is_written(tmp_path):
+    import socket
+
+    with socket.socket() as s:  # a port that nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    for backend in ("ray", "dask"):
+        with pytest.raises(ValueError, match=f"cannot reach the {backend} cluster"):
+            sweep(CONFIG, tmp_path / backend, backend=backend, address=f"127.0.0.1:{port}", progress=False)
+        assert not (tmp_path / backend).exists()
+    with pytest.raises(ValueError, match="grid.env_kwargs.layot"):
+        read_sweep_config({**CONFIG, "grid": {"env_kwargs.layot": ["open5"]}})
+
+
+def test_when_no_trial_succeeded_a_stale_figure_is_removed_and_not_claimed(tmp_path):
+    from avq.sweep import _plot_curves
+
+    cfg = read_sweep_config(CONFIG)
+    (tmp_path / "curves.png").write_bytes(b"an older figure")
+    assert _plot_curves(tmp_path, cfg, plan_trials(cfg), {}) is False
+    assert not (tmp_path / "curves.png").exists()
+
+
+def test_sweeps_and_training_runs_keep_out_of_each_others_directories(local_run, tmp_path):
+    from avq.experiments import train
+
+    with pytest.raises(ValueError, match="holds a sweep"):
+        train("avq/GridMaze-v0", "tabular", episodes=2, out=local_run[0], progress=False)
+    run = tmp_path / "run"
+    train("avq/GridMaze-v0", "tabular", episodes=2, out=run, progress=False)
+    with pytest.raises(ValueError, match="holds a run of 'avq train'"):
+        sweep(CONFIG, run, progress=False)

@@ -141,9 +141,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
                  if value is not None]
         if given:
             raise UsageError(f"--resume continues a run as its config.yml says; drop {given[0]}")
+        if os.path.isfile(args.resume):
+            raise UsageError(f"--resume {args.resume} is a file; give the run directory that holds it")
         if not os.path.isdir(args.resume):
             raise UsageError(f"--resume {args.resume}: no such run directory")
-        summary = resume_train(args.resume, progress=not args.no_progress)
+        try:
+            summary = resume_train(args.resume, progress=not args.no_progress)
+        except KeyboardInterrupt:
+            return _interrupted(args.resume)
         if summary.get("already_finished"):
             print(f"{args.resume} is already finished; nothing to do")
         _print_train_summary(summary)
@@ -162,13 +167,34 @@ def _cmd_train(args: argparse.Namespace) -> int:
             episodes = 500
     seed = args.seed if args.seed is not None else config.get("seed", 0)
     every = args.checkpoint_every or config.get("checkpoint_every") or 100
-    summary = train(
-        env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
-        env_kwargs=env_kwargs, out=args.out or config.get("out"), progress=not args.no_progress,
-        checkpoint_every=every,
-    )
+    from avq.experiments import default_run_dir
+
+    out = args.out or config.get("out") or str(default_run_dir(env_id, agent, seed))
+    try:
+        summary = train(
+            env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
+            env_kwargs=env_kwargs, out=out, progress=not args.no_progress, checkpoint_every=every,
+        )
+    except KeyboardInterrupt:
+        return _interrupted(out)
     _print_train_summary(summary)
     return 0
+
+
+def _interrupted(run_dir: str) -> int:
+    """Ctrl-C during a run: say where it can continue from."""
+    from avq.agents.base import load
+
+    checkpoint = os.path.join(run_dir, "checkpoint.zip")
+    where = "before its first checkpoint"
+    if os.path.exists(checkpoint):
+        try:
+            where = f"at its checkpoint after episode {load(checkpoint).num_episodes}"
+        except (ValueError, OSError):
+            pass
+    print(f"avq: interrupted; the run stopped {where}. Continue it with: avq train --resume {run_dir}",
+          file=sys.stderr)
+    return 130
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -211,13 +237,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError("--out DIR is required: the sweep writes its trials and results there")
     if args.metric is not None:
         raise UsageError("--metric is for 'avq sweep report DIR'; set 'metric' in the config for the default")
+    if os.path.isdir(args.target[0]):
+        raise UsageError(f"{args.target[0]} is a directory; give the sweep's YAML config "
+                         "(or 'avq sweep report DIR' to rank a finished sweep)")
     if not os.path.isfile(args.target[0]):
         raise UsageError(f"no such sweep config: {args.target[0]}")
     rows = sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
                  progress=not args.no_progress)
     failed = [r for r in rows if r["status"] != "ok"]
-    print(f"{len(rows) - len(failed)} of {len(rows)} trials finished, {len(failed)} failed -> "
-          f"{os.path.join(args.out, 'results.csv')}, {os.path.join(args.out, 'curves.png')}")
+    written = [os.path.join(args.out, name) for name in ("results.csv", "curves.png")
+               if os.path.exists(os.path.join(args.out, name))]
+    print(f"{len(rows) - len(failed)} of {len(rows)} trials finished, {len(failed)} failed -> {', '.join(written)}")
     for r in failed[:5]:
         print(f"  failed: {r['trial']}: {r['error']}", file=sys.stderr)
     return 1 if failed else 0
@@ -275,7 +305,8 @@ def build_parser() -> argparse.ArgumentParser:
         "DIR/results.csv and DIR/curves.png (exit code 1 if a trial failed); "
         "avq sweep report DIR ranks the configurations.",
     )
-    sw.add_argument("target", nargs="+", metavar="CONFIG.yml | report DIR")
+    sw.add_argument("target", nargs="+", metavar="CONFIG.yml|report DIR",
+                    help="the sweep's YAML config, or 'report' and a sweep directory")
     sw.add_argument("--out", help="the sweep's directory")
     sw.add_argument("--backend", choices=["local", "ray", "dask"], default="local",
                     help="local processes (default), a Ray cluster or a Dask cluster")

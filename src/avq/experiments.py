@@ -253,6 +253,8 @@ def train(
         raise ValueError(f"{out} already holds a trained run; choose another --out")
     if (out / "checkpoint.zip").exists():
         raise ValueError(f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out")
+    if (out / "sweep.json").exists():
+        raise ValueError(f"{out} holds a sweep; choose another --out for the run")
     out.mkdir(parents=True, exist_ok=True)
     agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
     config = {
@@ -293,6 +295,10 @@ def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str,
         from avq.agents.base import load
 
         model = load(checkpoint, env=env)
+        expected = make_agent(config["agent"], env, seed=config.get("seed"), **(config.get("params") or {}))
+        if type(model) is not type(expected) or model.get_params() != expected.get_params():
+            raise ValueError(f"{checkpoint} does not belong to this run: its agent or parameters differ from "
+                             f"{out / 'config.yml'}")
     else:
         model = make_agent(config["agent"], env, seed=config.get("seed"), **(config.get("params") or {}))
     return _run_to_the_end(model, out, config, progress)

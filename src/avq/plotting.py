@@ -172,6 +172,7 @@ def plot_learning_curves(
     window: int = 20,
     ylabel: str = "steps per trial",
     title: str | None = None,
+    xlabel: str = "trial",
 ) -> Path:
     """Smoothed mean and 95% interval over seeds, one line per agent.
 
@@ -195,7 +196,7 @@ def plot_learning_curves(
     from matplotlib.ticker import MaxNLocator
 
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_xlabel("trial")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(f"{ylabel} ({min(window, n)}-trial mean)")
     ax.set_title(title or "learning curves (mean and 95% t-interval over seeds)")
     ax.legend(fontsize=8)
@@ -211,7 +212,7 @@ def plot_learning_curves(
             ax2.fill_between(x, mean - half, mean + half, alpha=0.25)
         ax2.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
-        ax2.set_xlabel("trial")
+        ax2.set_xlabel(xlabel)
         ax2.set_ylabel("cells")
         ax2.set_title("codebook size")
         ax2.legend(fontsize=8)

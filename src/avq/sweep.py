@@ -194,6 +194,13 @@ def _check_configurations(config: SweepConfig, where: str) -> None:
         env = make_env(config.env, config.env_kwargs)
     except ValueError as exc:
         raise ValueError(f"{where}: 'env': {exc}") from None
+    env_keys = {k: v[0] for k, v in config.grid.items() if k.startswith(_ENV_PREFIX)}
+    if env_keys:  # the names of varied env arguments, with their first values (later ones fail as trials)
+        try:
+            make_env(config.env, {**config.env_kwargs, **_split(env_keys)[1]})
+        except ValueError as exc:
+            keys = ", ".join(f"grid.{k}" for k in env_keys)
+            raise ValueError(f"{where}: {keys}: {exc}") from None
     for agent, point in _configurations(config):
         params, _ = _split(point)
         try:
@@ -309,7 +316,37 @@ def _trial_kwargs(config: SweepConfig, trial: Trial, out: Path) -> dict[str, Any
 # -- backends --------------------------------------------------------------------------------------------
 
 def _missing(backend: str, module: str) -> ValueError:
-    return ValueError(f"the {backend} backend needs {module}, which is not installed: pip install \"avq[{backend}]\"")
+    return ValueError(f"the {backend} backend needs {module}, which is not installed: "
+                      f"pip install \"avq[{backend}]\" (from a clone of avq: pip install \".[{backend}]\")")
+
+
+def _check_backend(backend: str, address: str | None) -> None:
+    """Fail before anything is written: the backend's package is missing, or its cluster is unreachable."""
+    if backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise _missing("ray", "Ray") from None
+    elif backend == "dask":
+        try:
+            import dask.distributed  # noqa: F401
+        except ImportError:
+            raise _missing("dask", "dask.distributed") from None
+    if address and backend in ("ray", "dask") and address != "auto":
+        import socket
+        from urllib.parse import urlsplit
+
+        parts = urlsplit(address if "://" in address else f"tcp://{address}")
+        try:
+            host, port = parts.hostname, parts.port
+        except ValueError:
+            host, port = None, None
+        if not host or not port:
+            raise ValueError(f"--address {address!r} is not host:port (or scheme://host:port)")
+        try:
+            socket.create_connection((host, port), timeout=10).close()
+        except OSError as exc:
+            raise ValueError(f"cannot reach the {backend} cluster at {address}: {exc.strerror or exc}") from None
 
 
 def _run_local(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> Iterator[tuple[int, dict]]:
@@ -402,9 +439,12 @@ def sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | o
     if jobs is not None and not _is_int(jobs, 1):
         raise ValueError(f"jobs must be an integer >= 1, not {jobs!r}")
     cfg = config if isinstance(config, SweepConfig) else read_sweep_config(config)
+    _check_backend(backend, address)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out} is a file; give a directory for the sweep")
+    if (out / "config.yml").exists() and not (out / "sweep.json").exists():
+        raise ValueError(f"{out} holds a run of 'avq train'; choose another --out for the sweep")
     saved = out / "sweep.json"
     if saved.exists():
         before = json.loads(saved.read_text(encoding="utf-8"))
@@ -478,7 +518,7 @@ def _config_label(agent: str, point: dict[str, Any]) -> str:
     return f"{agent} {_label(point)}".strip()
 
 
-def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict[int, dict[str, Any]]) -> None:
+def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict[int, dict[str, Any]]) -> bool:
     """Return per episode, mean and 95% interval over seeds, one line per configuration."""
     from avq.plotting import plot_learning_curves
 
@@ -490,14 +530,29 @@ def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict
         with open(path, encoding="utf-8") as f:
             returns = np.array([float(r["return"]) for r in csv.DictReader(f)])
         curves.setdefault(_config_label(t.agent, t.point), []).append(returns)
+    path = out / "curves.png"
+    curves = {k: runs for k, runs in curves.items() if min(len(c) for c in runs) > 0}
     if not curves:
-        return
-    shortest = min(len(c) for runs in curves.values() for c in runs)
-    if shortest == 0:
-        return
-    curves = {k: [c[:shortest] for c in runs] for k, runs in curves.items()}
-    plot_learning_curves(curves, out / "curves.png", ylabel="return per episode",
-                         title=f"{cfg.env}: return per episode (mean, 95% t-interval over seeds)")
+        if path.exists():
+            path.unlink()  # a figure of an earlier state of the sweep would mislead
+        return False
+    # At most the 10 best configurations by the sweep's metric, so that the figure stays readable.
+    note = ""
+    if len(curves) > 10:
+        higher = METRICS[cfg.metric]
+        score: dict[str, list[float]] = {}
+        for t in trials:
+            value = results.get(t.index, {}).get(cfg.metric)
+            if value is not None:
+                score.setdefault(_config_label(t.agent, t.point), []).append(float(value))
+        ranked = sorted(curves, key=lambda k: -np.mean(score.get(k, [-math.inf])) if higher
+                        else np.mean(score.get(k, [math.inf])))
+        curves = {k: curves[k] for k in ranked[:10]}
+        note = f", the 10 best of {len(ranked)} configurations by {cfg.metric}"
+    # Each configuration is drawn over the episodes all its seeds have.
+    plot_learning_curves(curves, path, ylabel="return per episode", xlabel="episode",
+                         title=f"{cfg.env}: return per episode (mean, 95% t-interval over seeds{note})")
+    return True
 
 
 # -- the report ------------------------------------------------------------------------------------------
@@ -539,6 +594,7 @@ def report(out: str | os.PathLike, metric: str | None = None) -> str:
     for k, (label, mean, half, vals, g) in enumerate(ranked, 1):
         lo = f"{vals.min():.4g}" if len(vals) else "-"
         hi = f"{vals.max():.4g}" if len(vals) else "-"
-        lines.append(f"{k:>4}  {label:<{width}}  {mean:>16.4g}  {half:>9.3g}  {lo:>9}  {hi:>9}  "
+        spread = f"{half:.3g}" if len(vals) >= 2 else "-"
+        lines.append(f"{k:>4}  {label:<{width}}  {mean:>16.4g}  {spread:>9}  {lo:>9}  {hi:>9}  "
                      f"{len(vals):>3}  {g['failed']:>6}")
     return "\n".join(lines)

@@ -345,6 +345,8 @@ class BaseAgent:
             self._wall_s += time.perf_counter() - t0
             if bar is not None:
                 bar.close()
+        if checkpoint is not None:
+            log.sync(self.history_)  # the episodes after the last checkpoint too (a resume drops them again)
         return self
 
     def _checkpoint(self, directory: Path, log: "ProgressLog") -> None:
