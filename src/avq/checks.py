@@ -188,6 +188,10 @@ def check_agent(agent: str | type[BaseAgent], env_id: str = "avq/GridMaze-v0", *
     """
     if isinstance(agent, str) and agent not in AGENTS:
         raise ValueError(f"unknown agent {agent!r}; known agents: {', '.join(sorted(AGENTS))}")
+    if not isinstance(agent, str) and not (isinstance(agent, type) and issubclass(agent, BaseAgent)):
+        raise TypeError(f"agent must be a registry name or a BaseAgent subclass, not {agent!r}")
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, not {episodes!r}")
     case = _Case(agent, env_id, dict(env_kwargs or {}), dict(params or {}), episodes)
     for name, check in CHECKS.items():
         try:

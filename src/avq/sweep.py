@@ -98,7 +98,8 @@ def read_sweep_config(source: str | os.PathLike | dict[str, Any]) -> SweepConfig
 
         where = str(source)
         try:
-            raw = yaml.safe_load(Path(source).read_text(encoding="utf-8"))
+            with open(source, encoding="utf-8") as f:
+                raw = yaml.safe_load(f)  # from the stream, so that YAML errors name the file
         except OSError as exc:
             raise ValueError(f"cannot read {source}: {exc.strerror or exc}") from None
         except yaml.YAMLError as exc:
