@@ -260,3 +260,20 @@ def test_every_agent_refuses_a_non_finite_first_observation(scripted, name):
     env = scripted([((np.nan, 0.0), [((1.0, 0.0), -1.0, True, False, False)])])
     with pytest.raises(ValueError, match="at step 0 of episode 1 is not finite"):
         make_agent(name, env, seed=0).learn(total_episodes=1)
+
+
+def test_epsilon_schedule_decays_per_episode_to_its_floor_and_survives_loading(tmp_path):
+    from avq.agents import _avq_core as core
+
+    agent = make_agent("avq-maze", maze(), seed=0, epsilon=0.4, epsilon_decay=0.5, epsilon_min=0.06)
+    seen = []
+    agent.learn(total_episodes=4, callback=lambda a, r: seen.append(float(a._P[core.EPS])))
+    assert seen == pytest.approx([0.2, 0.1, 0.06, 0.06], rel=1e-12)  # 0.4 * 0.5**k, floored at 0.06
+    loaded = avq.load(agent.save(tmp_path / "m.zip"))
+    assert loaded._P[core.EPS] == agent._P[core.EPS]
+    fused = make_agent("avq-maze", maze(), seed=3, epsilon_decay=0.98).learn(total_episodes=60)
+    generic = make_agent("avq-maze", maze(), seed=3, epsilon_decay=0.98, fused=False).learn(total_episodes=60)
+    assert np.array_equal(fused.q_, generic.q_) and np.array_equal(fused.codebook_, generic.codebook_)
+    for bad in ({"epsilon_decay": 0.0}, {"epsilon_decay": 1.5}, {"epsilon_min": -0.1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            make_agent("avq", maze(), **bad)

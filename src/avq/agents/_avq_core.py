@@ -38,8 +38,8 @@ from avq.rules import CHI as CHI_OUTCOME
 from avq.rules import collision_rule, may_append, mean_square_difference
 
 # P: float parameters
-ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG = range(10)
-N_P = 10
+ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN = range(13)
+N_P = 13
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS = range(7)
 N_IP = 7
@@ -321,10 +321,19 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
 
 
 @njit(cache=True)
+def epsilon_at(P, episodes: int) -> float:
+    """The exploration rate after ``episodes`` episodes: ``max(epsilon_min, epsilon * decay ** episodes)``."""
+    if P[EPS_DECAY] == 1.0:
+        return P[EPS0]
+    return max(P[EPS_MIN], P[EPS0] * P[EPS_DECAY] ** episodes)
+
+
+@njit(cache=True)
 def end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec_row) -> None:
     """Count the episode, run the merge pass when due, and fill its record row."""
     S[EPISODES] += 1
     S[IN_EPISODE] = 0
+    P[EPS] = epsilon_at(P, S[EPISODES])
     merges = 0
     if IP[MERGE_EVERY] > 0 and S[EPISODES] % IP[MERGE_EVERY] == 0:
         merges = merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S)

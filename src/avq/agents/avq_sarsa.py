@@ -45,6 +45,9 @@ class AVQSarsa(BaseAgent):
         merge_age: A cell may merge only after this many complete episodes of its own
             (0, the paper: at once). Cells made by the value-change trigger start as
             copies of their parent, so without an age they would merge back at once.
+        epsilon_decay: Beyond the paper: after ``k`` episodes the exploration rate is
+            ``max(epsilon_min, epsilon * epsilon_decay ** k)`` (1, the default: constant).
+        epsilon_min: The floor of that schedule.
         collision_split: Beyond the paper: on a collision within ``d_min`` of the
             cell's own vector, where the paper sets ``Q[i, a] = chi`` for the whole
             cell, split instead when ``a`` is the cell's greedy action and ``x`` is not
@@ -118,6 +121,8 @@ class AVQSarsa(BaseAgent):
         merge_same_action: bool = False,
         merge_pairs: str = "mutual",
         collision_split: bool = False,
+        epsilon_decay: float = 1.0,
+        epsilon_min: float = 0.0,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
@@ -138,6 +143,8 @@ class AVQSarsa(BaseAgent):
         if merge_pairs not in _MERGE_PAIRS:
             raise ValueError(f"merge_pairs must be one of {', '.join(map(repr, _MERGE_PAIRS))}, not {merge_pairs!r}")
         self.merge_pairs = merge_pairs
+        self.epsilon_decay = check_range("epsilon_decay", epsilon_decay, 0.0, 1.0, low_open=True)
+        self.epsilon_min = check_range("epsilon_min", epsilon_min, 0.0, 1.0)
         if not isinstance(collision_split, (bool, np.bool_)):
             raise ValueError(f"collision_split must be True or False, not {collision_split!r}")
         self.collision_split = bool(collision_split)
@@ -209,6 +216,8 @@ class AVQSarsa(BaseAgent):
         P = np.zeros(core.N_P)
         P[[core.ALPHA, core.LAM, core.GAMMA, core.EPS, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
             self.alpha, self.lam, self.gamma, self.epsilon, self.d_min, self.rho, self.chi, self.q_init)
+        P[[core.EPS0, core.EPS_DECAY, core.EPS_MIN]] = self.epsilon, self.epsilon_decay, self.epsilon_min
+        P[core.EPS] = core.epsilon_at(P, self.num_episodes)
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
@@ -251,10 +260,10 @@ class AVQSarsa(BaseAgent):
             self._refuse_non_finite(x, 0.0, 0)
         self._ensure_capacity(1)
         cell = core.begin_episode(*self._state(), x)
-        self._S[core.ACTION] = epsilon_greedy(self._Q[cell], self.epsilon, self._rng)
+        self._S[core.ACTION] = epsilon_greedy(self._Q[cell], float(self._P[core.EPS]), self._rng)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, rng, eps = self.env, self._rng, self.epsilon
+        env, rng, eps = self.env, self._rng, float(self._P[core.EPS])
         S = self._S
         shape = self._V.shape[1:]
         a = int(S[core.ACTION])
@@ -398,6 +407,7 @@ class AVQSarsa(BaseAgent):
         self._S[core.SIZE] = p
         self._S[core.EPISODES] = self.num_episodes
         self._S[core.GEOM] += 1
+        self._P[core.EPS] = core.epsilon_at(self._P, self.num_episodes)
 
 
 #: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.
