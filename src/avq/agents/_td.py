@@ -20,14 +20,13 @@ def epsilon_greedy(q_row: np.ndarray, epsilon: float, rng: np.random.Generator) 
     is taken (one more draw), otherwise the greedy action, with one more draw only
     when several actions share the maximum.
     """
-    m = q_row.shape[0]
     if rng.random() < epsilon:
-        return int(rng.integers(m))
+        return int(rng.integers(q_row.shape[0]))
     row = q_row.tolist()  # plain floats: much faster than NumPy scalars for a handful of actions
     best = max(row)
-    ties = [k for k in range(m) if row[k] == best]
-    if len(ties) == 1:
-        return ties[0]
+    if row.count(best) == 1:
+        return row.index(best)
+    ties = [k for k, v in enumerate(row) if v == best]
     return ties[int(rng.integers(len(ties)))]
 
 
