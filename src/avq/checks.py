@@ -45,21 +45,16 @@ class _Case:
         return self.agent(self.env(), seed=seed, **params)
 
 
-def _learned(agent: BaseAgent) -> dict[str, np.ndarray]:
-    """Every learned array, the history without its wall-clock column, and the counters."""
+def _snapshot(agent: BaseAgent) -> dict[str, np.ndarray]:
+    """Every learned array, the history without its wall-clock column, the counters, and the
+    generator's next draw (taken from a twin, so the agent's stream is left as it was)."""
     arrays = dict(agent._state_dict()[1])
     arrays["history"] = arrays["history"][:, :-1]
     arrays["counters"] = np.array([agent.num_timesteps, agent.num_episodes])
-    arrays["rng"] = np.array([agent._rng.random()])  # the stream's next draw, from a copy below
+    twin = np.random.Generator(type(agent._rng.bit_generator)())
+    twin.bit_generator.state = agent._rng.bit_generator.state
+    arrays["rng"] = np.array([twin.random()])
     return arrays
-
-
-def _snapshot(agent: BaseAgent) -> dict[str, np.ndarray]:
-    state = agent._rng.bit_generator.state
-    try:
-        return _learned(agent)
-    finally:
-        agent._rng.bit_generator.state = state
 
 
 def _assert_same(a: dict[str, np.ndarray], b: dict[str, np.ndarray], what: str) -> None:

@@ -352,8 +352,7 @@ def _check_backend(backend: str, address: str | None) -> None:
 
 def _run_local(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> Iterator[tuple[int, dict]]:
     if n_jobs == 1:
-        for k, kw in enumerate(jobs):
-            yield k, _safe_trial(kw)
+        yield from (_indexed_trial(k, kw) for k, kw in enumerate(jobs))
         return
     from joblib import Parallel, delayed
 

@@ -214,8 +214,8 @@ class AVQSarsa(BaseAgent):
         self._pc[0, 0] = -1
         self._inv_scale = 1.0 / self._scale
         P = np.zeros(core.N_P)
-        P[[core.ALPHA, core.LAM, core.GAMMA, core.EPS, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
-            self.alpha, self.lam, self.gamma, self.epsilon, self.d_min, self.rho, self.chi, self.q_init)
+        P[[core.ALPHA, core.LAM, core.GAMMA, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
+            self.alpha, self.lam, self.gamma, self.d_min, self.rho, self.chi, self.q_init)
         P[[core.EPS0, core.EPS_DECAY, core.EPS_MIN]] = self.epsilon, self.epsilon_decay, self.epsilon_min
         P[core.EPS] = core.epsilon_at(P, self.num_episodes)
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
