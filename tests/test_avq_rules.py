@@ -408,3 +408,65 @@ def test_merge_pairs_nearest_pairs_closest_first_mutual_or_not():
     assert mutual_nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1]]
     with pytest.raises(ValueError, match="merge_pairs must be one of"):
         agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], merge_pairs="closest")
+
+
+def _cycle_agent(return_obs, **kw):
+    # Episode 1 makes two cells: a bump at (5, 0), far from y_0 = (0, 0), appends it (then truncation).
+    # By hand: cell 0 prefers action 0, cell 1 action 1. Episode 2 (epsilon 0, all greedy): from cell 0
+    # action 0 reaches (5, 0) in cell 1, whose action 1 returns to cell 0 at return_obs; then the
+    # episode runs out at (0.3, 0).
+    ep1 = ((0, 0), [((5, 0), -1, NO, True, True)])
+    ep2 = ((0.4, 0), [((5, 0), -1, NO, NO, NO), (return_obs, -1, NO, NO, NO), ((0.3, 0), -1, NO, True, NO)])
+    agent, env = agent_for([ep1, ep2], **kw)
+    agent.learn(total_episodes=1)
+    assert agent.codebook_.tolist() == [[0, 0], [5, 0]]
+    agent._Q[0, :2] = (1.0, 0.0)
+    agent._Q[1, :2] = (0.0, 1.0)
+    agent.learn(total_episodes=1)
+    assert env.actions[1][:2] == [0, 1]  # both decisions greedy
+    return agent
+
+
+@pytest.mark.parametrize("cycle_split", [False, True])
+def test_cycle_split_splits_off_the_return_into_a_cell_left_by_two_greedy_decisions(cycle_split):
+    agent = _cycle_agent((0.3, 0), cycle_split=cycle_split)
+    # Transition 0 -> 1: delta = -1 + Q[1, 1] - Q[0, 0] = -1, Q[0, 0] = 0.5.
+    # Transition 1 -> 0 at (0.3, 0): delta = -1 + Q[0, 0] - Q[1, 1] = -1.5; E[1, 1] = 1, E[0, 0] = 0.7:
+    # Q[1, 1] = 1 - 0.75 = 0.25, Q[0, 0] = 0.5 - 0.525 = -0.025. A cycle 0 -> 1 -> 0 of greedy decisions:
+    # the split appends (0.3, 0) as a copy of cell 0 (its profile after that update).
+    if not cycle_split:
+        assert agent.n_cells == 2 and agent.history_[1]["appends"] == 0
+        return
+    assert agent.codebook_.tolist() == [[0, 0], [5, 0], [0.3, 0]]
+    assert agent.history_[1]["appends"] == 1
+    # The last transition (2, a=0) -> truncation at (0.3, 0), still cell 2: a' = greedy of Q[2] = (-0.025, 0)
+    # is 1. delta = -1 + Q[2, 1] - Q[2, 0] = -0.975 with E[2, 0] = 1, E[1, 1] = 0.7, E[0, 0] = 0.49.
+    delta = -1 + 0.0 - (-0.025)
+    assert np.allclose(agent.q_[2, :2], (-0.025 + 0.5 * delta, 0.0))
+    assert np.allclose(agent.q_[0, :2], (-0.025 + 0.5 * delta * 0.49, 0.0))
+    assert np.allclose(agent.q_[1, :2], (0.0, 0.25 + 0.5 * delta * 0.7))
+
+
+def test_cycle_split_leaves_the_vector_itself_and_respects_max_cells():
+    # A return exactly onto y_0 cannot be split off.
+    assert _cycle_agent((0, 0), cycle_split=True).n_cells == 2
+    # At max_cells the split is refused and counted.
+    agent = _cycle_agent((0.3, 0), cycle_split=True, max_cells=2)
+    assert agent.n_cells == 2 and agent.history_[1]["refused"] == 1
+
+
+def test_cycle_split_needs_greedy_decisions():
+    # epsilon 1: the decisions are random; whenever the walk 0 -> 1 -> 0 was not greedy twice, no split.
+    seen = set()
+    for seed in range(12):
+        ep1 = ((0, 0), [((5, 0), -1, NO, True, True)])
+        ep2 = ((0.4, 0), [((5, 0), -1, NO, NO, NO), ((0.3, 0), -1, NO, NO, NO), ((0.3, 0), -1, NO, True, NO)])
+        agent, env = agent_for([ep1, ep2], cycle_split=True, epsilon=1.0, seed=seed)
+        agent.learn(total_episodes=1)
+        agent._Q[0, :2] = (1.0, 0.0)
+        agent._Q[1, :2] = (0.0, 1.0)
+        agent.learn(total_episodes=1)
+        greedy_twice = env.actions[1][:2] == [0, 1]
+        assert agent.n_cells == (3 if greedy_twice else 2), (seed, env.actions[1])
+        seen.add(greedy_twice)
+    assert seen == {True, False}  # both cases occurred

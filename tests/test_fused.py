@@ -8,9 +8,15 @@ from gymnasium.wrappers import RecordEpisodeStatistics
 import avq
 
 
-def run(name, fused, seed, **learn):
+#: The general avq defaults, which ``make_agent("avq", maze)`` replaces with the maze defaults.
+GENERAL = ("avq", avq.AGENTS["avq"][1])
+#: Every rule of the kernels: the paper's, the maze defaults (with the splits), the general defaults.
+VARIANTS = [("avq-paper", {}), ("avq", {}), GENERAL]
+
+
+def run(name, fused, seed, overrides=None, **learn):
     env = gym.make("avq/GridMaze-v0")
-    agent = avq.make_agent(name, env, seed=seed, fused=fused)
+    agent = avq.make_agent(name, env, seed=seed, fused=fused, **(overrides or {}))
     agent.learn(**learn)
     return agent
 
@@ -24,10 +30,10 @@ def same(a, b):
     assert a.num_timesteps == b.num_timesteps and a.num_episodes == b.num_episodes
 
 
-@pytest.mark.parametrize("name", ["avq-paper", "avq"])
+@pytest.mark.parametrize("name, overrides", VARIANTS, ids=["avq-paper", "avq", "avq-general"])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_fused_and_generic_paths_are_identical(name, seed):
-    same(run(name, True, seed, total_episodes=300), run(name, False, seed, total_episodes=300))
+def test_fused_and_generic_paths_are_identical(name, overrides, seed):
+    same(run(name, True, seed, overrides, total_episodes=300), run(name, False, seed, overrides, total_episodes=300))
 
 
 def test_paths_can_alternate_mid_episode():
@@ -67,11 +73,12 @@ def test_other_wrappers_fall_back_to_the_generic_path():
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"observe_sonar": True}, {"start": "fixed", "move": 0.5}])
-@pytest.mark.parametrize("name", ["avq-paper", "avq"])
-def test_fused_robot_maze_is_identical_to_the_generic_path(name, kwargs):
+@pytest.mark.parametrize("name, overrides", VARIANTS + [("avq", {"cycle_split": True})],
+                         ids=["avq-paper", "avq", "avq-general", "avq-cycle-split"])
+def test_fused_robot_maze_is_identical_to_the_generic_path(name, overrides, kwargs):
     runs = []
     for fused in (True, False):
-        agent = avq.make_agent(name, gym.make("avq/RobotMaze-v0", **kwargs), seed=3, fused=fused)
+        agent = avq.make_agent(name, gym.make("avq/RobotMaze-v0", **kwargs), seed=3, fused=fused, **overrides)
         runs.append(agent.learn(total_episodes=25))
     same(*runs)
 

@@ -41,11 +41,11 @@ from avq.rules import collision_rule, may_append, mean_square_difference
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN = range(13)
 N_P = 13
 # IP: int parameters
-REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS = range(7)
-N_IP = 7
+REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
+N_IP = 8
 # S: int state
-SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM = range(10)
-N_S = 10
+SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM, PREV_CELL, PREV_GREEDY = range(12)
+N_S = 12
 # F: float state
 RET, DISC, EP_RETURN, PREV_R = range(4)
 N_F = 4
@@ -155,6 +155,8 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     S[REFUSED] = 0
     S[DECISIONS] = 1
     S[IN_EPISODE] = 1
+    S[PREV_CELL] = -1
+    S[PREV_GREEDY] = 0
     F[RET] = 0.0
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
@@ -225,6 +227,11 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
     """
     i = S[CELL]
     a = S[ACTION]
+    greedy = True  # was the decision (i, a) greedy? (a best action of Q[i], ties included)
+    for b in range(Q.shape[1]):
+        if Q[i, b] > Q[i, a]:
+            greedy = False
+            break
     if terminated:
         delta = F[RET] - Q[i, a]
     else:
@@ -251,9 +258,22 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
         for b in range(m):
             Q[s, b] += step * E[s, b]
             E[s, b] *= decay
+    appended = False
     if P[VTRIG] > 0.0 and abs(delta) >= P[VTRIG]:
         if _may_append(scaled_distance(V, j, x, inv_scale), P, IP, S):
             j = _append(V, Q, E, born, S, x, j)
+            appended = True
+    if IP[CYCLE_SPLIT] and not (done or appended) and greedy and S[PREV_GREEDY] and S[PREV_CELL] == j and j != i:
+        # Beyond the paper: two greedy decisions led from cell j to i and back into j, a cycle
+        # that the greedy policy would repeat forever: the cell j is wrong for part of it.
+        # Split off the square of the return (x, unless it is j's own vector).
+        if scaled_distance(V, j, x, inv_scale) > 0.0:
+            if S[SIZE] < IP[MAX_CELLS]:
+                j = _append(V, Q, E, born, S, x, j)
+            else:
+                S[REFUSED] += 1
+    S[PREV_CELL] = i
+    S[PREV_GREEDY] = greedy
     S[CELL] = j
     S[ACTION] = a_next
     F[RET] = 0.0

@@ -54,6 +54,12 @@ class AVQSarsa(BaseAgent):
             the vector itself: append ``x`` as a copy of the cell with ``Q[c, a] = chi``.
             A cell then keeps an action that is right for most of it, and the squares
             where it hits a wall get cells of their own.
+        cycle_split: Beyond the paper: when two greedy decisions in a row lead from a cell
+            ``j`` to another cell and straight back into ``j`` (a cycle the greedy policy
+            would repeat for ever, typical of a cell whose squares need opposite actions),
+            split off the observation of the return as a copy of ``j``, unless it is ``j``'s
+            own vector. Within ``d_min``, like ``collision_split``; counted in ``refused`` at
+            ``max_cells``.
         merge_pairs: Which pairs the merge pass considers. ``"mutual"`` (the paper,
             SPEC §4): each the other's unique nearest vector (Fig. 2's strict ``<``).
             ``"mutual_ties"``: a tie for the nearest goes to the lowest index instead of
@@ -121,6 +127,7 @@ class AVQSarsa(BaseAgent):
         merge_same_action: bool = False,
         merge_pairs: str = "mutual",
         collision_split: bool = False,
+        cycle_split: bool = False,
         epsilon_decay: float = 1.0,
         epsilon_min: float = 0.0,
         value_trigger: float | None = None,
@@ -148,6 +155,9 @@ class AVQSarsa(BaseAgent):
         if not isinstance(collision_split, (bool, np.bool_)):
             raise ValueError(f"collision_split must be True or False, not {collision_split!r}")
         self.collision_split = bool(collision_split)
+        if not isinstance(cycle_split, (bool, np.bool_)):
+            raise ValueError(f"cycle_split must be True or False, not {cycle_split!r}")
+        self.cycle_split = bool(cycle_split)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -222,9 +232,9 @@ class AVQSarsa(BaseAgent):
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
         IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-            core.COLLISION_SPLIT, core.MERGE_PAIRS]] = (
+            core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT]] = (
             self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
-            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs))
+            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split)
         self._P, self._IP = P, IP
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
