@@ -277,3 +277,23 @@ def test_epsilon_schedule_decays_per_episode_to_its_floor_and_survives_loading(t
     for bad in ({"epsilon_decay": 0.0}, {"epsilon_decay": 1.5}, {"epsilon_min": -0.1}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             make_agent("avq", maze(), **bad)
+
+
+def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
+    from avq.agents.registry import AGENTS, TASK_DEFAULTS, agent_defaults
+
+    maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
+    assert maze.get_params() == {**avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
+                                 "cycle_split": True, "seed": 0}
+    robot = avq.make_agent("avq", "avq/RobotMaze-v0")
+    assert robot.collision_split and not robot.cycle_split and robot.max_cells == 10_000
+    general = avq.make_agent("avq", gym.make("MountainCar-v0"))
+    assert {k: general.get_params()[k] for k in AGENTS["avq"][1]} == AGENTS["avq"][1]
+    assert not general.collision_split and general.value_trigger == 1.0
+    # Explicit overrides win over the task's defaults; the task's defaults replace all of the name's.
+    assert avq.make_agent("avq", "avq/GridMaze-v0", cycle_split=False, d_min=2.0).get_params()["d_min"] == 2.0
+    assert agent_defaults("avq", "avq/GridMaze-v0") == TASK_DEFAULTS["avq"]["avq/GridMaze-v0"]
+    assert "merge_age" not in agent_defaults("avq", "avq/GridMaze-v0")
+    assert agent_defaults("avq", "CartPole-v1") == AGENTS["avq"][1]
+    with pytest.raises(ValueError, match="unknown agent 'nope'"):
+        agent_defaults("nope")

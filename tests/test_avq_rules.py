@@ -470,3 +470,18 @@ def test_cycle_split_needs_greedy_decisions():
         assert agent.n_cells == (3 if greedy_twice else 2), (seed, env.actions[1])
         seen.add(greedy_twice)
     assert seen == {True, False}  # both cases occurred
+
+
+def test_adapt_rate_moves_the_cell_vector_toward_each_observation_but_not_on_collisions():
+    # y_0 = (0, 0); rate 0.5: (0.2, 0) moves it to 0.1, (0.4, 0) to 0.25; the bump at (1, 0) (within
+    # d_min 1 of y_0, chi for the cell) leaves it; the terminal (0.05, 0.5) moves it to (0.15, 0.25).
+    steps = [((0.2, 0), -1, NO, NO, NO), ((0.4, 0), -1, NO, NO, NO), ((1.0, 0), -1, NO, NO, True),
+             ((0.05, 0.5), 10, True, NO, NO)]
+    agent, _ = agent_for([((0, 0), steps)], adapt_rate=0.5)
+    agent.learn(total_episodes=1)
+    assert np.allclose(agent.codebook_, [[0.15, 0.25]])
+    still, _ = agent_for([((0, 0), steps)])
+    still.learn(total_episodes=1)
+    assert still.codebook_.tolist() == [[0, 0]]
+    with pytest.raises(ValueError, match="adapt_rate"):
+        agent_for([((0, 0), steps)], adapt_rate=1.0)

@@ -268,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--layout", default="lau2002", help="preset name or layout file (default lau2002)")
     rep.add_argument("--seeds", type=_positive_int("--seeds"), default=10, help="number of seeds 0..N-1 (default 10)")
     rep.add_argument("--trials", type=_positive_int("--trials"), default=1000, help="trials per run (default 1000)")
-    rep.add_argument("--agents", default="avq-paper,tabular", help="comma-separated agent names")
+    rep.add_argument("--agents", default="avq-paper,avq,tabular", help="comma-separated agent names")
     rep.add_argument("--start", choices=["random", "fixed"], default="random", help="start positions (default random)")
     rep.add_argument("--out", default="reproduce-out", help="output directory (default reproduce-out)")
     rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,

@@ -85,7 +85,7 @@ def reproduce(
     layout: LayoutSpec = "lau2002",
     seeds: Sequence[int] = tuple(range(10)),
     trials: int = 1000,
-    agents: Sequence[str] = ("avq-paper", "tabular"),
+    agents: Sequence[str] = ("avq-paper", "avq", "tabular"),
     start: str = "random",
     out: str | os.PathLike = "reproduce-out",
     n_jobs: int | None = None,
@@ -154,22 +154,26 @@ def reproduce(
 
     first = int(seeds[0])
     avq_names = [n for n in agents if n.startswith("avq")]
-    fig_agent = avq_names[0] if avq_names else agents[0]
     env = gym.make("avq/GridMaze-v0", layout=layout_arg, start=start)
-    model = load(by[(fig_agent, first)].model_path, env=env)
-    success = by[(fig_agent, first)].success_rate
-    plot_partition(
-        model, env, out / "partition.png",
-        title=f"{fig_agent}, seed {first}: {model.n_cells} cells for {lay.n_states} states, "
-              f"greedy policy reaches the goal from {success:.0%} of starts",
-    )
+    figures = []
+    # The partition of every AVQ agent's first seed (or of the first agent's, with none):
+    # partition.png for the first, partition-NAME.png for the others.
+    for k, name in enumerate(avq_names or list(agents[:1])):
+        model = load(by[(name, first)].model_path, env=env)
+        success = by[(name, first)].success_rate
+        figures.append(out / ("partition.png" if k == 0 else f"partition-{name}.png"))
+        plot_partition(
+            model, env, figures[-1],
+            title=f"{name}, seed {first}: {model.n_cells} cells for {lay.n_states} states, "
+                  f"greedy policy reaches the goal from {success:.0%} of starts",
+        )
     curves = {n: [by[(n, int(s))].steps_per_trial for s in seeds] for n in agents}
     cells = {n: [by[(n, int(s))].cells_per_trial for s in seeds] for n in avq_names}
     plot_learning_curves(curves, out / "learning_curve.png", cells=cells or None,
                          title=f"{summary['layout']}: steps per trial (mean, 95% t-interval over seeds)")
     if log is not None:
         log(format_table(summary))
-        log(f"wrote {out / 'summary.json'}, {out / 'partition.png'}, {out / 'learning_curve.png'} "
+        log(f"wrote {out / 'summary.json'}, {', '.join(map(str, figures))}, {out / 'learning_curve.png'} "
             f"({time.perf_counter() - t0:.1f} s)")
     return summary
 

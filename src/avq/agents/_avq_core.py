@@ -38,8 +38,8 @@ from avq.rules import CHI as CHI_OUTCOME
 from avq.rules import collision_rule, may_append, mean_square_difference
 
 # P: float parameters
-ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN = range(13)
-N_P = 13
+ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN, ADAPT = range(14)
+N_P = 14
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
 N_IP = 8
@@ -198,6 +198,11 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
         F[PREV_R] = r
         if jump and not collision and _may_append(dist_j, P, IP, S):
             j = _append(V, Q, E, born, S, x, i)
+    if P[ADAPT] > 0.0 and not collision:
+        # Beyond the paper: move the vector of x's cell toward x (online k-means, rate adapt_rate).
+        for d in range(x.shape[0]):
+            V[j, d] += P[ADAPT] * (x[d] - V[j, d])
+        S[GEOM] += 1
     if j == i and not (collision or done):
         return -1
     if collision:

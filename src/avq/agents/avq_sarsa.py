@@ -60,6 +60,9 @@ class AVQSarsa(BaseAgent):
             split off the observation of the return as a copy of ``j``, unless it is ``j``'s
             own vector. Within ``d_min``, like ``collision_split``; counted in ``refused`` at
             ``max_cells``.
+        adapt_rate: Beyond the paper: after every step without a collision, move the vector of
+            the observation's cell toward it by this fraction of the distance (online k-means;
+            0, the paper: vectors stay where they were placed).
         merge_pairs: Which pairs the merge pass considers. ``"mutual"`` (the paper,
             SPEC §4): each the other's unique nearest vector (Fig. 2's strict ``<``).
             ``"mutual_ties"``: a tie for the nearest goes to the lowest index instead of
@@ -128,6 +131,7 @@ class AVQSarsa(BaseAgent):
         merge_pairs: str = "mutual",
         collision_split: bool = False,
         cycle_split: bool = False,
+        adapt_rate: float = 0.0,
         epsilon_decay: float = 1.0,
         epsilon_min: float = 0.0,
         value_trigger: float | None = None,
@@ -158,6 +162,7 @@ class AVQSarsa(BaseAgent):
         if not isinstance(cycle_split, (bool, np.bool_)):
             raise ValueError(f"cycle_split must be True or False, not {cycle_split!r}")
         self.cycle_split = bool(cycle_split)
+        self.adapt_rate = check_range("adapt_rate", adapt_rate, 0.0, 1.0, high_open=True)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -228,6 +233,7 @@ class AVQSarsa(BaseAgent):
             self.alpha, self.lam, self.gamma, self.d_min, self.rho, self.chi, self.q_init)
         P[[core.EPS0, core.EPS_DECAY, core.EPS_MIN]] = self.epsilon, self.epsilon_decay, self.epsilon_min
         P[core.EPS] = core.epsilon_at(P, self.num_episodes)
+        P[core.ADAPT] = self.adapt_rate
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
