@@ -12,6 +12,7 @@ Episodes are limited to ``4 * (width + height)`` steps. The AVQ agents get
 
     python benchmarks/scaling.py                 # sides 12, 22, 42, 62; 5 seeds (a few minutes)
     python benchmarks/scaling.py --quick         # sides 12 and 22; 2 seeds
+    python benchmarks/scaling.py --agents avq    # rerun one agent, keep the others' rows in the CSV
 """
 
 from __future__ import annotations
@@ -29,13 +30,14 @@ from joblib import Parallel, delayed
 import avq
 from avq.envs import parse_layout, random_layout
 
-AGENTS = {"avq-maze": {"max_cells": 1_000_000}, "avq-paper": {}, "tabular": {}, "tiles": {}}
+AGENTS = {"avq": {"max_cells": 1_000_000}, "avq-maze": {"max_cells": 1_000_000}, "avq-paper": {}, "tabular": {},
+          "tiles": {}}
 
 
 def steps_to_success(name: str, side: int, seed: int, budget: int, target: float = 0.95) -> dict:
     rows = random_layout(side, side, 0.2, seed=1000 + side)
     limit = 4 * (2 * side)
-    make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit)  # noqa: E731
+    make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit)
     agent = avq.make_agent(name, make(), seed=seed, **AGENTS[name])
     eval_env = make()
     chunk = 10
@@ -61,12 +63,26 @@ def main() -> None:
     ap.add_argument("--budget", type=int, default=3_000_000, help="env steps per run before giving up")
     ap.add_argument("--csv", default="docs/data/scaling.csv")
     ap.add_argument("--figure", default="docs/figures/scaling.png")
+    ap.add_argument("--agents", default=",".join(AGENTS), help="comma-separated agents to run (default: all)")
     args = ap.parse_args()
+    names = [n.strip() for n in args.agents.split(",")]
+    if any(n not in AGENTS for n in names):
+        ap.error(f"--agents: choose from {', '.join(AGENTS)}")
     sides = (12, 22) if args.quick else (12, 22, 42, 62)
     seeds = args.seeds or (2 if args.quick else 5)
-    jobs = [(name, side, seed) for side in sides for name in AGENTS for seed in range(seeds)]
+    jobs = [(name, side, seed) for side in sides for name in names for seed in range(seeds)]
     print(f"{len(jobs)} runs on {os.cpu_count()} cores: sides {sides}, {seeds} seeds, budget {args.budget} steps")
     rows = Parallel(n_jobs=-1)(delayed(steps_to_success)(n, s, sd, args.budget) for n, s, sd in jobs)
+    if Path(args.csv).exists():  # keep the rows of the agents not run now
+        with open(args.csv, newline="", encoding="utf-8") as f:
+            kept = [r for r in csv.DictReader(f) if r["agent"] not in names and r["agent"] in AGENTS
+                    and int(r["side"]) in sides and int(r["seed"]) < seeds]
+        for r in kept:
+            r.update(side=int(r["side"]), states=int(r["states"]), seed=int(r["seed"]), reached=r["reached"] == "True",
+                     env_steps=int(r["env_steps"]), cells=int(r["cells"]), success=float(r["success"]),
+                     wall_s=float(r["wall_s"]))
+        rows = kept + rows
+    present = [n for n in AGENTS if any(r["agent"] == n for r in rows)]
     Path(args.csv).parent.mkdir(parents=True, exist_ok=True)
     with open(args.csv, "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -75,7 +91,7 @@ def main() -> None:
     print(f"\n{'states':>7} {'agent':<10} {'steps to 95% (median)':>22} {'reached':>8} {'cells':>7}")
     summary = {}
     for side in sides:
-        for name in AGENTS:
+        for name in present:
             rs = [r for r in rows if r["side"] == side and r["agent"] == name]
             steps = np.median([r["env_steps"] for r in rs])
             got = sum(r["reached"] for r in rs)
@@ -89,7 +105,7 @@ def main() -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for name in AGENTS:
+    for name in present:
         pts = [summary[(name, s)] for s in sides]
         x = [p[0] for p in pts]
         axes[0].plot(x, [p[1] for p in pts], "o-", label=name)

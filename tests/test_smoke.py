@@ -20,7 +20,10 @@ ENVS = {
     "mountain-car": lambda: gym.make("MountainCar-v0"),
     "cartpole": lambda: gym.make("CartPole-v1"),
     "frozen-lake": lambda: gym.make("FrozenLake-v1"),
+    "pendulum": lambda: gym.make("Pendulum-v1"),
 }
+#: The agents for continuous (Box) actions; every other agent needs Discrete actions.
+CONTINUOUS_ACTIONS = {"avq-actions", "uniform-actions"}
 
 
 def overrides(agent, env_name):
@@ -33,6 +36,8 @@ def overrides(agent, env_name):
 
 def supported(agent, env_name):
     """Which combinations must work; the others must fail with a clear ValueError."""
+    if env_name == "pendulum" or agent in CONTINUOUS_ACTIONS:
+        return env_name == "pendulum" and agent in CONTINUOUS_ACTIONS
     return env_name != "frozen-lake" or agent == "tabular"
 
 
@@ -57,11 +62,11 @@ def test_every_agent_on_every_env_type(agent, env_name, tmp_path):
     action, _ = model.predict(obs)
     assert env.action_space.contains(action)
     batch, _ = model.predict(np.stack([obs, obs]))
-    assert batch.shape == (2,)
+    assert batch.shape == (2, *env.action_space.shape)
     path = model.save(tmp_path / "m.zip")
     loaded = avq.load(path, env=ENVS[env_name]())
     assert type(loaded) is type(model) and loaded.get_params() == model.get_params()
-    assert loaded.predict(obs)[0] == action
+    assert np.array_equal(loaded.predict(obs)[0], action)
     assert loaded.num_timesteps == model.num_timesteps
 
 
