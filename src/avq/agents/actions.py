@@ -1,0 +1,528 @@
+"""AVQ on the action space: Sarsa(λ) over an adaptive codebook of continuous actions.
+
+The paper's last remark (SPEC §8) proposes vector quantization of the action
+space. Here the *states* are tile-coded as in :class:`avq.agents.tiles.TileSarsa`
+and the *actions* are a codebook of vectors in the environment's ``Box`` action
+space, grown and merged by rules transposed from SPEC §3 and §4:
+
+- **Growth** (the analogue of appending a vector): where the policy spends its
+  decisions, split. The action chosen greedily most often over the recently
+  visited states, ``g``, and its best-valued neighbour ``j`` get a new vector
+  between them, ``(y_g + y_j) / 2``, whose value column starts at the mean of
+  theirs. Never within ``d_min`` of an existing vector, never beyond
+  ``max_actions``.
+- **Merging** (SPEC §4 with states and actions swapped): two action vectors
+  that are each other's nearest and whose value columns, over the recently
+  visited states, differ by a mean square below ``rho`` become one: vector and
+  weights averaged, the later slots move down.
+
+Distances between actions are measured in units of the action range (every
+dimension scaled to [0, 1]), so ``d_min`` is a fraction of the range.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from avq.agents._history import EpisodeHistory
+from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents.base import (
+    BaseAgent,
+    EpisodeRecord,
+    _make_env,
+    check_int,
+    check_range,
+    check_sarsa_params,
+    episode_record,
+)
+from avq.agents.tiles import _check_tiles_per_dim, mark_traces
+from avq.tilecoding import TileCoder
+
+__all__ = ["ActionCodebookSarsa", "gabriel_neighbours", "merged_vector", "plan_growth", "plan_merges",
+           "uniform_actions"]
+
+
+# -- the codebook's rules, on unit-scaled action vectors ----------------------------------------------
+
+
+def uniform_actions(k: int, dims: int) -> np.ndarray:
+    """A uniform grid of ``k`` points per dimension over the unit box, ``(k ** dims, dims)``,
+    the first dimension varying slowest (``k = 1``: the centre)."""
+    axis = np.array([0.5]) if k == 1 else np.linspace(0.0, 1.0, k)
+    mesh = np.meshgrid(*([axis] * dims), indexing="ij")
+    return np.stack([m.ravel() for m in mesh], axis=1)
+
+
+def gabriel_neighbours(points: np.ndarray, i: int) -> list[int]:
+    """The vectors adjacent to ``points[i]``: ``j`` such that no other vector lies strictly
+    inside the ball whose diameter is the segment ``i``-``j`` (the Gabriel graph; in one
+    dimension, the vectors just left and right of ``i``)."""
+    out = []
+    for j in range(len(points)):
+        if j == i:
+            continue
+        centre = (points[i] + points[j]) / 2.0
+        radius2 = float(np.sum((points[i] - centre) ** 2))
+        others = np.delete(np.arange(len(points)), [i, j])
+        if not np.any(np.sum((points[others] - centre) ** 2, axis=1) < radius2):
+            out.append(j)
+    return out
+
+
+def plan_growth(points: np.ndarray, q: np.ndarray, d_min: float) -> tuple[int, int] | None:
+    """Where to split: ``(g, j)`` to insert ``(points[g] + points[j]) / 2``, or None.
+
+    Args:
+        points: ``(n, d)`` live action vectors in unit coordinates.
+        q: ``(N, n)`` action values of ``N`` recently visited states.
+        d_min: Smallest allowed distance of a new vector to every existing one.
+
+    ``g`` is the action that is greedy (lowest index on ties) in the most states
+    (lowest index on ties). Its neighbours (:func:`gabriel_neighbours`) are tried in
+    order of their mean value over the states where ``g`` is greedy, best first
+    (lowest index on ties); the first whose midpoint lies farther than ``d_min``
+    from every vector is chosen. None when every midpoint is too close.
+    """
+    n = points.shape[0]
+    if n < 2 or q.shape[0] == 0:
+        return None
+    greedy = q.argmax(axis=1)
+    g = int(np.bincount(greedy, minlength=n).argmax())
+    where_g = q[greedy == g]
+    neighbours = gabriel_neighbours(points, g)
+    values = where_g[:, neighbours].mean(axis=0)
+    for k in np.argsort(-values, kind="stable"):
+        j = neighbours[int(k)]
+        mid = (points[g] + points[j]) / 2.0
+        if np.sqrt(np.sum((points - mid) ** 2, axis=1)).min() > d_min:
+            return g, j
+    return None
+
+
+def plan_merges(points: np.ndarray, q: np.ndarray, rho: float, min_actions: int = 2) -> list[tuple[int, int]]:
+    """The pairs to merge, ``(i, j)`` with ``i < j``, most similar first.
+
+    A pair merges when its vectors are each other's nearest (lowest index on ties)
+    and the mean square difference of their value columns over the ``N`` states,
+    ``mean_s (q[s, i] - q[s, j]) ** 2``, is below ``rho`` (SPEC §4 with the roles of
+    states and actions swapped). Mutual nearest pairs are disjoint. Merging stops
+    before fewer than ``min_actions`` vectors would be left.
+    """
+    n = points.shape[0]
+    if n < 2 or q.shape[0] == 0:
+        return []
+    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=2)
+    np.fill_diagonal(d2, np.inf)
+    nearest = d2.argmin(axis=1)
+    pairs = []
+    for i in range(n):
+        j = int(nearest[i])
+        if i < j and nearest[j] == i:
+            msd = float(np.mean((q[:, i] - q[:, j]) ** 2))
+            if msd < rho:
+                pairs.append((msd, i, j))
+    pairs.sort()
+    return [(i, j) for _, i, j in pairs[: max(0, n - min_actions)]]
+
+
+def merged_vector(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The mean of two unit-scaled vectors, except that a coordinate on the box's edge
+    (0 or 1) in one of them and not the other stays on that edge.
+
+    Plain averaging could only ever pull the codebook inward: the extreme actions
+    (often the best ones, as in bang-bang control) would be lost for good, since
+    growth inserts midpoints only.
+    """
+    out = (a + b) / 2.0
+    for v in (a, b):
+        edge = (v == 0.0) | (v == 1.0)
+        other = b if v is a else a
+        keep = edge & ~((other == 0.0) | (other == 1.0))
+        out[keep] = v[keep]
+    return out
+
+
+# -- the agent --------------------------------------------------------------------------------------------
+
+
+class ActionCodebookSarsa(BaseAgent):
+    """Linear Sarsa(λ) on tile-coded states over an adaptive codebook of continuous actions.
+
+    The learner is :class:`~avq.agents.tiles.TileSarsa`'s: ``Q(s, a) = sum_i w[i, a]``
+    over the active tiles of ``s``, Sarsa(λ) with traces on the features, one
+    ε-greedy decision per primitive step. Its discrete actions are the vectors of
+    an action codebook: at the start a uniform grid of ``init_actions`` values per
+    action dimension (low to high); with ``fixed=False``, every ``adapt_every``
+    episodes a merge pass and then one growth step (module docstring;
+    :func:`plan_merges`, :func:`plan_growth`, :func:`merged_vector`), judged on the
+    last ``memory`` visited states. With ``fixed=True`` the grid stays: the uniform
+    discretization with the same learner.
+
+    Args:
+        env: A Gymnasium environment (or registered id) with a 1-D ``Box`` observation
+            space and a bounded ``Box`` action space.
+        init_actions: Values per action dimension of the initial uniform grid, >= 1
+            (``init_actions ** dims`` vectors; 1 is the centre).
+        fixed: Keep the initial grid (no growth, no merging).
+        max_actions: Most action vectors at once (the weight table's columns).
+        adapt_every: Episodes between adaptation passes (merge pass, then one growth step).
+        d_min: A new vector must lie farther than this from every other, in units of the
+            action range, in (0, 1].
+        rho: Merge threshold on the mean square difference of two value columns over the
+            remembered states, in the reward's units squared, >= 0 (0: never merge).
+        memory: Number of last visited states on which the rules judge.
+        n_tilings, tiles_per_dim, iht_size, obs_bounds: The tile coding, as in TileSarsa.
+        alpha: Total step size in (0, 1] (each weight moves by ``alpha / n_tilings``).
+        lam, gamma, epsilon, traces: As in TileSarsa.
+        q_init: Initial value of every ``Q(s, a)``. Optimistic by default: on
+            MountainCarContinuous (-0.1 a^2 per step, +100 at the flag) an agent that starts
+            at 0 learns to stand still and never finds the flag.
+        seed: Seed of every random choice the agent makes and of the env's first reset.
+
+    Attributes:
+        actions_: ``(n_actions_, *shape)`` the live action vectors, in the env's units.
+        n_actions_: Number of live action vectors.
+        weights_: ``(iht_size, n_actions_)`` weights of the live actions.
+        n_cells: The number of live actions (not of tiles; the tiles in use are
+            ``tile_coder_.n_used``).
+
+    Episode records count in ``n_cells`` the live actions after the episode, in
+    ``appends`` the vectors grown and in ``merges`` the merges of the pass that ran
+    after it (if any), and in ``refused`` the growth steps refused there (every
+    midpoint within ``d_min``, or ``max_actions`` reached).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env | str,
+        *,
+        init_actions: int = 3,
+        fixed: bool = False,
+        max_actions: int = 17,
+        adapt_every: int = 25,
+        d_min: float = 0.03,
+        rho: float = 30.0,
+        memory: int = 2000,
+        n_tilings: int = 8,
+        tiles_per_dim: int | Sequence[int] = 8,
+        iht_size: int = 4096,
+        obs_bounds: Sequence[tuple[float, float] | None] | None = None,
+        alpha: float = 0.5,
+        lam: float = 0.9,
+        gamma: float = 0.99,
+        epsilon: float = 0.05,
+        q_init: float = 30.0,
+        traces: str = "replacing",
+        seed: int | None = None,
+    ) -> None:
+        check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
+        self.init_actions = check_int("init_actions", init_actions, 1)
+        if not isinstance(fixed, (bool, np.bool_)):  # a bad parameter is a ValueError, as everywhere in avq
+            raise ValueError(f"fixed must be True or False, not {fixed!r}")  # noqa: TRY004
+        self.fixed = bool(fixed)
+        self.max_actions = check_int("max_actions", max_actions, 2)
+        self.adapt_every = check_int("adapt_every", adapt_every, 1)
+        self.d_min = check_range("d_min", d_min, 0.0, 1.0, low_open=True)
+        self.rho = check_range("rho", rho, 0.0, np.inf, high_open=True)
+        self.memory = check_int("memory", memory, 1)
+        self.n_tilings = check_int("n_tilings", n_tilings, 1)
+        self.tiles_per_dim = _check_tiles_per_dim(tiles_per_dim)
+        self.iht_size = check_int("iht_size", iht_size, 1)
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        self._init_base(env, seed)
+        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
+        n = self._low.shape[0]
+        if isinstance(self.tiles_per_dim, list) and len(self.tiles_per_dim) != n:
+            raise ValueError(
+                f"tiles_per_dim must be an int or {n} ints (one per observation dimension), not {self.tiles_per_dim!r}"
+            )
+        if self.iht_size < self.n_tilings:
+            raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
+        box = self.env.action_space
+        self._act_shape = tuple(box.shape)  # type: ignore[attr-defined]
+        self._act_low = np.asarray(box.low, dtype=np.float64).ravel()  # type: ignore[attr-defined]
+        self._act_high = np.asarray(box.high, dtype=np.float64).ravel()  # type: ignore[attr-defined]
+        self._grid = uniform_actions(self.init_actions, self._act_low.shape[0])
+        if not self.fixed and len(self._grid) > self.max_actions:
+            raise ValueError(f"max_actions must be at least the initial grid's {len(self._grid)} actions "
+                             f"(init_actions ** action dims), not {self.max_actions}")
+        # Weight columns: the grid alone when fixed, else room for max_actions (never reallocated).
+        self._slots = len(self._grid) if self.fixed else self.max_actions
+
+    def _init_base(self, env: gym.Env | str, seed: int | None) -> None:
+        """``BaseAgent.__init__`` but for its ``n_actions = action_space.n``, which a Box has not
+        (here ``n_actions`` is the number of live action vectors); keep the two in step."""
+        self.env = _make_env(env)
+        self.seed = check_int("seed", seed, 0, allow_none=True)
+        self._check_spaces(self.env.observation_space, self.env.action_space)
+        seq = np.random.SeedSequence(self.seed)
+        agent_seq, env_seq, predict_seq = seq.spawn(3)
+        self._rng = np.random.default_rng(agent_seq)
+        self._predict_rng = np.random.default_rng(predict_seq)
+        self._env_seed: int | None = int(env_seq.generate_state(1)[0])
+        self.num_timesteps = 0
+        self.num_episodes = 0
+        self.history_ = EpisodeHistory()
+        self._in_episode = False
+        self._wall_s = 0.0
+        self._is_setup = False
+
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        name = type(self).__name__
+        if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
+            raise ValueError(f"{name} needs a 1-D Box observation space, not {obs_space}")
+        # Unsuitable spaces are ValueErrors, as in every avq agent (avq.agents._spaces).
+        if isinstance(act_space, spaces.Discrete):
+            raise ValueError(  # noqa: TRY004
+                f"{name} quantizes a continuous (Box) action space, but this environment's actions are "
+                f"already Discrete; use the other agents ('tiles', 'avq', 'grid'; see avq.AGENTS)")
+        if not isinstance(act_space, spaces.Box):
+            raise ValueError(f"{name} needs a Box action space, not {act_space}")  # noqa: TRY004
+        if not (np.all(np.isfinite(act_space.low)) and np.all(np.isfinite(act_space.high))
+                and np.all(act_space.high > act_space.low)):
+            raise ValueError(f"{name} needs a Box action space with finite bounds and low < high, not {act_space}")
+
+    # -- learned state ------------------------------------------------------------------------------
+    @property
+    def n_actions(self) -> int:  # type: ignore[override]
+        """Number of live action vectors (what ``predict`` chooses among)."""
+        return self._n if self._is_setup else len(self._grid)
+
+    @property
+    def n_actions_(self) -> int:
+        return self.n_actions
+
+    @property
+    def n_cells(self) -> int:
+        return self.n_actions
+
+    @property
+    def actions_(self) -> np.ndarray:
+        units = self._units[: self.n_actions] if self._is_setup else self._grid
+        return self._to_env_units(units).reshape((-1,) + self._act_shape)
+
+    @property
+    def weights_(self) -> np.ndarray:
+        return self._w[:, : self._n].copy()
+
+    @property
+    def tile_coder_(self) -> TileCoder:
+        return self._coder
+
+    def _to_env_units(self, units: np.ndarray) -> np.ndarray:
+        return self._act_low + units * (self._act_high - self._act_low)
+
+    def q_values(self, observations: np.ndarray) -> np.ndarray:
+        """``Q(s, a)`` of every live action for each observation of a batch ``(b, n)``: ``(b, n_actions_)``.
+
+        A query: tiles never met count with their initial weight and are not added.
+        """
+        if not self._is_setup:
+            raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() first")
+        x = np.asarray(observations, dtype=np.float64).reshape(-1, self._low.shape[0])
+        w = self._w[:, : self._n]
+        w0 = np.full(self._n, self.q_init / self.n_tilings)
+        out = np.empty((len(x), self._n))
+        for b, xb in enumerate(x):
+            active = self._coder(xb, readonly=True)
+            out[b] = np.where(active[:, None] >= 0, w[np.maximum(active, 0)], w0).sum(axis=0)
+        return out
+
+    def _setup(self) -> None:
+        bounds = list(zip(self._low.tolist(), self._high.tolist()))
+        self._coder = TileCoder(bounds, self.tiles_per_dim, self.n_tilings, self.iht_size)
+        self._w0 = self.q_init / self.n_tilings
+        self._w = np.full((self.iht_size, self._slots), self._w0)
+        self._e = np.zeros((self.iht_size, self._slots))
+        self._units = np.zeros((self._slots, self._act_low.shape[0]))
+        self._units[: len(self._grid)] = self._grid
+        self._n = len(self._grid)
+        self._refresh_env_actions()
+        self._step_size = self.alpha / self.n_tilings
+        # The last `memory` visited states, as their active tiles (a ring buffer).
+        self._recent = np.zeros((self.memory, self.n_tilings), dtype=np.int64)
+        self._recent_count = 0
+        self._ep_active = np.zeros(self.n_tilings, dtype=np.int64)
+        self._ep_action = 0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+
+    def _refresh_env_actions(self) -> None:
+        env_units = self._to_env_units(self._units[: self._n])
+        self._env_actions = [v.reshape(self._act_shape).astype(np.float32) for v in env_units]
+
+    def _features(self, obs: Any) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self._low.shape:
+            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
+        active = self._coder(x)
+        self._recent[self._recent_count % self.memory] = active
+        self._recent_count += 1
+        return active
+
+    def _values(self, active: np.ndarray) -> np.ndarray:
+        """``Q(s, .)`` of the live actions in the state with these active tiles."""
+        return self._w.take(active, axis=0)[:, : self._n].sum(axis=0)
+
+    # -- the episode loop (Sutton & Barto 2018, §12.7; as TileSarsa) -----------------------------------
+    def _begin_episode(self, obs: np.ndarray) -> None:
+        self._e[: self._coder.n_used] = 0.0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._check_finite(obs, 0.0, 0)
+        self._ep_active = self._features(obs)
+        self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        env, w, e, coder = self.env, self._w, self._e, self._coder
+        active, a = self._ep_active, self._ep_action
+        replacing = self.traces == "replacing"
+        decay = self.gamma * self.lam
+        n = 0
+        ended = False
+        while n < max_steps:
+            obs, r, terminated, truncated, _ = env.step(self._env_actions[a])
+            n += 1
+            self._check_finite(obs, r, self._ep_steps + n)
+            r = float(r)
+            self._ep_return += r
+            q_sa = self._values(active)[a]
+            if terminated:
+                active2, a2 = active, a
+                delta = sarsa_td_error(q_sa, r, self.gamma, 0.0, True)
+            else:
+                active2 = self._features(obs)
+                q2 = self._values(active2)
+                a2 = epsilon_greedy(q2, self.epsilon, self._rng)
+                delta = sarsa_td_error(q_sa, r, self.gamma, q2[a2], False)
+            mark_traces(e, active, a, replacing)
+            sarsa_lambda_update(w, e, int(active[0]), a, delta, self._step_size, decay, replacing, coder.n_used)
+            active, a = active2, a2
+            if terminated or truncated:
+                ended = True
+                break
+        self._ep_active, self._ep_action = active, a
+        self._ep_steps += n
+        return n, ended
+
+    def _end_episode(self) -> EpisodeRecord:
+        grown = merges = refused = 0
+        if not self.fixed and self.num_episodes % self.adapt_every == 0:
+            merges = self.merge_pass()
+            grown = self.grow_step()
+            refused = 1 - grown
+        return episode_record(self._ep_steps, self._ep_return, self._n, grown, merges, refused)
+
+    # -- adapting the codebook (between episodes) -----------------------------------------------------
+    def _remembered_values(self) -> np.ndarray:
+        """``(N, n_actions_)`` values of the live actions in the remembered states."""
+        states = self._recent[: min(self._recent_count, self.memory)]
+        return self._w.take(states, axis=0)[:, :, : self._n].sum(axis=1)
+
+    def grow_step(self) -> int:
+        """Insert one action vector where :func:`plan_growth` says; 1 if one was inserted, else 0."""
+        if self._n >= self._slots:
+            return 0
+        plan = plan_growth(self._units[: self._n], self._remembered_values(), self.d_min)
+        if plan is None:
+            return 0
+        g, j = plan
+        c = self._n
+        self._units[c] = (self._units[g] + self._units[j]) / 2.0
+        self._w[:, c] = (self._w[:, g] + self._w[:, j]) / 2.0
+        self._e[:, c] = 0.0
+        self._n += 1
+        self._refresh_env_actions()
+        return 1
+
+    def merge_pass(self) -> int:
+        """Merge the pairs :func:`plan_merges` finds; return how many merged.
+
+        The merged action takes the lower slot, its vector from :func:`merged_vector`
+        and its weights the mean of the pair's; the slots above the removed one move
+        down in order, and the freed columns return to their initial weights.
+        """
+        pairs = plan_merges(self._units[: self._n], self._remembered_values(), self.rho)
+        if not pairs:
+            return 0
+        removed = set()
+        for i, j in pairs:
+            self._units[i] = merged_vector(self._units[i], self._units[j])
+            self._w[:, i] = (self._w[:, i] + self._w[:, j]) / 2.0
+            removed.add(j)
+        keep = [k for k in range(self._n) if k not in removed]
+        n = len(keep)
+        self._units[:n] = self._units[keep]
+        self._w[:, :n] = self._w[:, keep]
+        self._units[n:] = 0.0
+        self._w[:, n:] = self._w0
+        self._e[:] = 0.0
+        self._n = n
+        self._refresh_env_actions()
+        return len(pairs)
+
+    # -- acting ---------------------------------------------------------------------------------------
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        return self.q_values(obs).argmax(axis=1).astype(np.int64)
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, None]:
+        """The action vector for one observation (float32, the action space's shape), or
+        ``(b, *shape)`` for a batch; otherwise as :meth:`BaseAgent.predict`."""
+        index, _ = super().predict(observation, state, episode_start, deterministic)
+        return self.slot_actions(index), None
+
+    def slot_actions(self, index: int | np.ndarray) -> np.ndarray:
+        """The action vectors (float32, in the env's units) of live action slots."""
+        idx = np.asarray(index, dtype=np.int64)
+        out = self._to_env_units(self._units[idx]).astype(np.float32)
+        return out.reshape(idx.shape + self._act_shape)
+
+    # -- saving ---------------------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        meta, arrays = super()._state_dict()
+        meta["overflows"] = self._coder.overflows
+        meta["recent_count"] = self._recent_count
+        arrays["weights"] = self._w.copy()
+        arrays["tiles"] = self._coder.tiles()
+        arrays["action_units"] = self._units[: self._n].copy()
+        arrays["recent"] = self._recent[: min(self._recent_count, self.memory)].copy()
+        return meta, arrays
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        super()._load_state_dict(meta, arrays)
+        w, units, recent = arrays["weights"], arrays["action_units"], arrays["recent"]
+        count = int(meta["recent_count"])
+        if w.shape != self._w.shape:
+            raise ValueError(f"weights of shape {w.shape} do not fit ({self.iht_size}, {self._slots})")
+        dims = self._units.shape[1]
+        if units.ndim != 2 or units.shape[1] != dims or not 1 <= len(units) <= self._slots:
+            raise ValueError(f"action_units of shape {units.shape} do not fit (1..{self._slots}, {dims})")
+        if not (np.all(units >= 0.0) and np.all(units <= 1.0)):
+            raise ValueError("action_units lie outside the unit box")
+        if self.fixed and not np.array_equal(units, self._grid):
+            raise ValueError("a fixed agent's actions must be its initial grid")
+        if count < 0 or recent.shape != (min(count, self.memory), self.n_tilings):
+            raise ValueError(f"recent states of shape {recent.shape} do not fit recent_count {count} "
+                             f"and memory {self.memory}")
+        if recent.size and (recent.min() < 0 or recent.max() >= self.iht_size):
+            raise ValueError("recent states name tiles outside the weight table")
+        self._coder.restore(arrays["tiles"], int(meta["overflows"]))
+        self._w[:] = w
+        self._n = len(units)
+        self._units[:] = 0.0
+        self._units[: self._n] = units
+        self._recent[: len(recent)] = recent
+        self._recent_count = count
+        self._refresh_env_actions()
