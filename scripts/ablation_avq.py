@@ -39,6 +39,8 @@ ROWS: dict[str, tuple[str, dict]] = {
     "epsilon 0.2 decaying by 0.995 to 0.01": ("avq", {"epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01}),
     "vectors adapt: rate 0.01": ("avq", {"adapt_rate": 0.01}),
     "vectors adapt: rate 0.05": ("avq", {"adapt_rate": 0.05}),
+    "pruning: after 10 episodes": ("avq", {"prune_after": 10}),
+    "pruning: after 50 episodes": ("avq", {"prune_after": 50}),
     "no optimism: q_init 0": ("avq", {"q_init": 0.0}),
     "more optimism: q_init 20": ("avq", {"q_init": 20.0}),
     "optimism only: epsilon 0": ("avq", {"epsilon": 0.0}),

@@ -485,3 +485,29 @@ def test_adapt_rate_moves_the_cell_vector_toward_each_observation_but_not_on_col
     assert still.codebook_.tolist() == [[0, 0]]
     with pytest.raises(ValueError, match="adapt_rate"):
         agent_for([((0, 0), steps)], adapt_rate=1.0)
+
+
+def test_prune_after_removes_cells_without_decisions_for_that_many_episodes():
+    # Episode 1 (from (0, 0)) bumps at (5, 0), far from y_0: cell 1 appended; the episode is truncated
+    # there, so a decision is learned into cell 1 (last decision: episode 1). Episodes 2 and 3 start
+    # at (0.2, 0) and terminate at (0.4, 0) in cell 0: cell 1 sees no decision.
+    ep1 = ((0, 0), [((5, 0), -1, NO, True, True)])
+    ep2 = ((0.2, 0), [((0.4, 0), 10, True, NO, NO)])
+    for prune_after, cells in ((0, [2, 2, 2]), (2, [2, 2, 1]), (1, [2, 1, 1])):
+        agent, _ = agent_for([ep1, ep2, ep2], prune_after=prune_after)
+        counts = []
+        for _ in range(3):
+            agent.learn(total_episodes=1)
+            counts.append(agent.n_cells)
+        assert counts == cells, prune_after
+        assert agent.codebook_[0].tolist() == [0, 0]
+    # The survivors keep their values and order: prune cell 0 instead by starting far away.
+    ep_far = ((5, 0), [((5.2, 0), 10, True, NO, NO)])
+    agent, _ = agent_for([ep1, ep_far, ep_far], prune_after=1)
+    agent.learn(total_episodes=1)
+    q1 = agent.q_[1].copy()
+    agent.learn(total_episodes=1)
+    assert agent.codebook_.tolist() == [[5, 0]] and agent.n_cells == 1
+    assert agent.q_[0, 1 - agent.env.unwrapped.actions[1][0]] == q1[1 - agent.env.unwrapped.actions[1][0]]
+    with pytest.raises(ValueError, match="prune_after"):
+        agent_for([ep1], prune_after=-1)

@@ -318,8 +318,10 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
     Q = np.zeros((cap, m))
     Q[:p] = q
     E = np.ones((cap, m))
-    B = np.zeros(cap, np.int64)
-    B[:p] = born
+    B = np.zeros((cap, 2), np.int64)
+    B[:p, 0] = born
+    seen = np.array(data.draw(st.lists(st.integers(0, episodes), min_size=p, max_size=p)), np.int64)
+    B[:p, 1] = seen
     act = np.zeros(cap + 1, np.int64)
     act[0] = min(p, 2)
     act[1:3] = [0, 1]
@@ -345,7 +347,9 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
     check_merge_result(y, q, pairs, mapping, V[:n_new], Q[:n_new])
     for r in range(p):
         merged = any(r in pr for pr in pairs)
-        assert B[mapping[r]] == (episodes if merged else born[r])
+        assert B[mapping[r], 0] == (episodes if merged else born[r])
+        partner = [j if i == r else i for i, j in pairs if r in (i, j)]
+        assert B[mapping[r], 1] == (max(seen[r], seen[partner[0]]) if merged else seen[r])
     assert not Q[n_new:p].any()  # freed rows are cleared
     if n:  # a merge clears every trace
         assert not E[:p].any() and act[0] == 0

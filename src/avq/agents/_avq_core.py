@@ -15,7 +15,8 @@ from the very same generator inside the compiled loop
 so both paths give identical results.
 
 State lives in preallocated arrays: ``V`` codebook ``(cap, n)``, ``Q`` and ``E``
-``(cap, m)``, ``born`` ``(cap,)``; ``act`` ``(cap + 1,)`` the rows whose traces are
+``(cap, m)``, ``born`` ``(cap, 2)`` the episode (1-based) that created each cell and
+the last episode in which the agent took a decision in it; ``act`` ``(cap + 1,)`` the rows whose traces are
 non-zero this episode (``act[0]`` of them), so that an update touches only those;
 ``pc`` ``(cap + 1, 2)`` the mutual-nearest pairs of the current geometry
 (``pc[0] = (geometry version, count)``), recomputed only after the codebook
@@ -42,7 +43,8 @@ ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EP
 N_P = 14
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
-N_IP = 8
+PRUNE_AFTER = 8
+N_IP = 9
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM, PREV_CELL, PREV_GREEDY = range(12)
 N_S = 12
@@ -126,7 +128,8 @@ def _append(V, Q, E, born, S, x, parent: int) -> int:
     for b in range(Q.shape[1]):
         Q[c, b] = Q[parent, b]
         E[c, b] = 0.0
-    born[c] = S[EPISODES] + 1
+    born[c, 0] = S[EPISODES] + 1
+    born[c, 1] = S[EPISODES] + 1
     S[SIZE] = c + 1
     S[APPENDS] += 1
     S[GEOM] += 1
@@ -143,7 +146,8 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
         for b in range(Q.shape[1]):
             Q[0, b] = P[QINIT]
             E[0, b] = 0.0
-        born[0] = 0
+        born[0, 0] = 0
+        born[0, 1] = 0
         S[SIZE] = 1
         S[GEOM] += 1
     for k in range(1, act[0] + 1):
@@ -163,6 +167,7 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     F[PREV_R] = 0.0
     cell, _ = nearest_index(V, S[SIZE], x, inv_scale)
     S[CELL] = cell
+    born[cell, 1] = S[EPISODES] + 1
     return cell
 
 
@@ -280,6 +285,7 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
     S[PREV_CELL] = i
     S[PREV_GREEDY] = greedy
     S[CELL] = j
+    born[j, 1] = S[EPISODES] + 1
     S[ACTION] = a_next
     F[RET] = 0.0
     F[DISC] = 1.0
@@ -314,7 +320,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
         if not mean_square_difference(Q[i], Q[j]) < P[RHO]:
             continue
         if IP[MERGE_AGE] > 0:
-            if S[EPISODES] - born[i] < IP[MERGE_AGE] or S[EPISODES] - born[j] < IP[MERGE_AGE]:
+            if S[EPISODES] - born[i, 0] < IP[MERGE_AGE] or S[EPISODES] - born[j, 0] < IP[MERGE_AGE]:
                 continue
         if IP[MERGE_SAME_ACTION] and np.argmax(Q[i]) != np.argmax(Q[j]):
             continue
@@ -332,7 +338,8 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             c += 1
             for b in range(m):
                 Q[i, b] = (Q[i, b] + Q[j, b]) / 2.0  # avq.rules.merged_values
-            born[i] = S[EPISODES]
+            born[i, 0] = S[EPISODES]
+            born[i, 1] = max(born[i, 1], born[j, 1])
     mapping = merge_kernel(V, size, chosen)
     compact_rows(Q, mapping)
     compact_rows(born, mapping)
@@ -343,6 +350,45 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     S[SIZE] = new_size
     S[GEOM] += 1
     return n_keep
+
+
+@njit(cache=True)
+def prune_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
+    """Beyond the paper: remove every cell older than ``prune_after`` episodes in which the agent has
+    taken no decision for the last ``prune_after`` episodes (the oldest such cell stays if none
+    else would). Later cells move down. Returns the number removed."""
+    size = S[SIZE]
+    k = IP[PRUNE_AFTER]
+    now = S[EPISODES]
+    stale = np.zeros(size, dtype=np.bool_)
+    n_stale = 0
+    for r in range(size):
+        if now - born[r, 0] >= k and now - born[r, 1] >= k:
+            stale[r] = True
+            n_stale += 1
+    if n_stale == size:
+        stale[0] = False
+        n_stale -= 1
+    if n_stale == 0:
+        return 0
+    w = 0
+    for r in range(size):
+        if stale[r]:
+            continue
+        if w != r:
+            for d in range(V.shape[1]):
+                V[w, d] = V[r, d]
+            for b in range(Q.shape[1]):
+                Q[w, b] = Q[r, b]
+            born[w, 0] = born[r, 0]
+            born[w, 1] = born[r, 1]
+        w += 1
+    Q[w:size, :] = 0.0
+    E[:size, :] = 0.0
+    act[0] = 0
+    S[SIZE] = w
+    S[GEOM] += 1
+    return n_stale
 
 
 @njit(cache=True)
@@ -362,6 +408,8 @@ def end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec_row) -> None
     merges = 0
     if IP[MERGE_EVERY] > 0 and S[EPISODES] % IP[MERGE_EVERY] == 0:
         merges = merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S)
+    if IP[PRUNE_AFTER] > 0:
+        prune_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S)
     rec_row[R_STEPS] = S[EP_STEPS]
     rec_row[R_RETURN] = F[EP_RETURN]
     rec_row[R_CELLS] = S[SIZE]

@@ -63,6 +63,9 @@ class AVQSarsa(BaseAgent):
         adapt_rate: Beyond the paper: after every step without a collision, move the vector of
             the observation's cell toward it by this fraction of the distance (online k-means;
             0, the paper: vectors stay where they were placed).
+        prune_after: Beyond the paper: after every episode, remove the cells in which the agent has
+            taken no decision for this many episodes (and that are at least that old); 0 never
+            prunes. Removals are not counted in the episode record (``n_cells`` shows them).
         merge_pairs: Which pairs the merge pass considers. ``"mutual"`` (the paper,
             SPEC §4): each the other's unique nearest vector (Fig. 2's strict ``<``).
             ``"mutual_ties"``: a tie for the nearest goes to the lowest index instead of
@@ -132,6 +135,7 @@ class AVQSarsa(BaseAgent):
         collision_split: bool = False,
         cycle_split: bool = False,
         adapt_rate: float = 0.0,
+        prune_after: int = 0,
         epsilon_decay: float = 1.0,
         epsilon_min: float = 0.0,
         value_trigger: float | None = None,
@@ -163,6 +167,7 @@ class AVQSarsa(BaseAgent):
             raise ValueError(f"cycle_split must be True or False, not {cycle_split!r}")
         self.cycle_split = bool(cycle_split)
         self.adapt_rate = check_range("adapt_rate", adapt_rate, 0.0, 1.0, high_open=True)
+        self.prune_after = check_int("prune_after", prune_after, 0)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -223,7 +228,8 @@ class AVQSarsa(BaseAgent):
         self._V = np.zeros((cap, n))
         self._Q = np.zeros((cap, self.n_actions))
         self._E = np.zeros((cap, self.n_actions))
-        self._born = np.zeros(cap, dtype=np.int64)  # episode (1-based) in which each cell was created
+        # Per cell: the episode (1-based) that created it, and the last one with a decision in it.
+        self._born = np.zeros((cap, 2), dtype=np.int64)
         self._act = np.zeros(cap + 1, dtype=np.int64)
         self._pc = np.zeros((cap + 1, 2), dtype=np.int64)
         self._pc[0, 0] = -1
@@ -238,9 +244,9 @@ class AVQSarsa(BaseAgent):
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
         IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-            core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT]] = (
+            core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER]] = (
             self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
-            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split)
+            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split, self.prune_after)
         self._P, self._IP = P, IP
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
@@ -403,7 +409,7 @@ class AVQSarsa(BaseAgent):
     # -- saving ---------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
-        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())
+        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())  # (p, 2)
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -415,8 +421,10 @@ class AVQSarsa(BaseAgent):
                 f"array shapes codebook {codebook.shape}, q {q.shape} do not fit ({n} dims, {self.n_actions} actions)"
             )
         born = arrays.get("born", np.zeros(len(q), dtype=np.int64))
-        if born.shape != (len(q),):
-            raise ValueError(f"array born has shape {born.shape}; expected ({len(q)},)")
+        if born.shape == (len(q),):  # files from before the last-decision column: count every cell as just seen
+            born = np.stack([born, np.full(len(q), self.num_episodes)], axis=1)
+        if born.shape != (len(q), 2):
+            raise ValueError(f"array born has shape {born.shape}; expected ({len(q)}, 2)")
         p = len(q)
         self._ensure_capacity(p)
         self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born
