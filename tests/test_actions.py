@@ -191,10 +191,8 @@ def test_predict_returns_actions_inside_the_box():
         ActionCodebookSarsa("MountainCarContinuous-v0").predict(obs[0])
 
 
-@pytest.mark.parametrize("check", [name for name in CHECKS if name != "predict"])
+@pytest.mark.parametrize("check", list(CHECKS))
 def test_conformance_checks_with_adaptation_every_episode(check):
-    # check_agent's 'predict' check expects Discrete actions; test_predict_returns_actions_inside_the_box
-    # checks the same for action vectors.
     case = _Case("avq-actions", "Pendulum-v1", {"max_episode_steps": 60}, {"adapt_every": 1}, 4)
     CHECKS[check](case)
 
@@ -269,3 +267,11 @@ def test_learning_improves_the_greedy_return_on_pendulum():
     # Untrained: -1199 (all values equal, so always the first action, -2). After 60 episodes, seeds 0-5
     # gave -455 to -814 (seed 0: -537).
     assert after["mean_return"] > before["mean_return"] + 300.0
+
+
+@pytest.mark.parametrize("name", ["avq-actions", "uniform-actions"])
+@pytest.mark.parametrize("env_id", ["Pendulum-v1", "MountainCarContinuous-v0"])
+def test_check_agent_passes_on_continuous_action_tasks(name, env_id):
+    from avq.checks import check_agent
+
+    assert check_agent(name, env_id, env_kwargs={"max_episode_steps": 50}, episodes=3) == list(CHECKS)

@@ -17,7 +17,7 @@ def test_reproduce_end_to_end_small_budget(tmp_path, capsys):
     assert set(summary) == {"layout", "n_states", "trials", "seeds", "agents"}
     assert summary["layout"] == "lau2002" and summary["n_states"] == 98 and summary["trials"] == 15
     assert summary["seeds"] == [0, 1]
-    assert list(summary["agents"]) == ["avq-paper", "tabular"]
+    assert list(summary["agents"]) == ["avq-paper", "avq", "tabular"]
     for res in summary["agents"].values():
         assert set(res) == {"n_cells", "success_rate", "path_ratio", "env_steps", "wall_s"}
         assert all(len(v) == 2 for v in res.values())
@@ -25,11 +25,11 @@ def test_reproduce_end_to_end_small_budget(tmp_path, capsys):
         assert all(0.0 <= s <= 1.0 for s in res["success_rate"])
         assert all(r is None or r >= 1.0 for r in res["path_ratio"])
         assert all(15 <= s <= 1500 for s in res["env_steps"])
-    for name in ("partition.png", "learning_curve.png"):
+    for name in ("partition.png", "partition-avq.png", "learning_curve.png"):
         data = (out / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
     printed = capsys.readouterr().out
-    assert "avq-paper" in printed and "tabular" in printed and "success" in printed
+    assert "avq-paper" in printed and "\navq " in printed and "tabular" in printed and "success" in printed
 
 
 def test_reproduce_is_reproducible(tmp_path):

@@ -16,6 +16,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 
 from avq.agents.base import BaseAgent
 from avq.agents.registry import AGENTS, make_agent
@@ -123,15 +124,18 @@ def check_predict(case: _Case) -> None:
     agent = case.make(seed=3).learn(total_episodes=case.episodes)
     before = _snapshot(agent)
     obs = _observations(case)
-    n_actions = agent.env.action_space.n
+    space = agent.env.action_space
     batch, state = agent.predict(obs)
-    assert state is None and batch.shape == (len(obs),) and batch.dtype == np.int64
-    assert ((batch >= 0) & (batch < n_actions)).all()
+    assert state is None and batch.shape == (len(obs), *space.shape)
+    if isinstance(space, spaces.Discrete):
+        assert batch.dtype == np.int64
+    explore, _ = agent.predict(obs, deterministic=False)
     for k in range(len(obs)):
         single, _ = agent.predict(obs[k])
-        assert isinstance(single, int) and single == batch[k], "single and batched predictions differ"
-    explore, _ = agent.predict(obs, deterministic=False)
-    assert ((explore >= 0) & (explore < n_actions)).all()
+        assert space.contains(single) and space.contains(explore[k]), "an action outside the action space"
+        if isinstance(space, spaces.Discrete):
+            assert isinstance(single, int)
+        assert np.array_equal(single, batch[k]), "single and batched predictions differ"
     _assert_same(before, _snapshot(agent), "predict changed the agent")
     for bad in (np.zeros(obs.shape[1] + 1), np.full(obs.shape[1], np.nan)):
         try:
@@ -176,7 +180,7 @@ def check_agent(agent: str | type[BaseAgent], env_id: str = "avq/GridMaze-v0", *
 
     Args:
         agent: A registry name (see ``avq.AGENTS``) or an agent class.
-        env_id: A registered Gymnasium id with a Discrete action space.
+        env_id: A registered Gymnasium id (Discrete actions, or Box actions for the agents made for them).
         env_kwargs: Arguments to ``gymnasium.make``.
         params: Agent parameters for every agent made.
         episodes: Episodes each check trains for.

@@ -125,7 +125,8 @@ def _print_train_summary(summary: dict) -> None:
     ret = summary["final_return_mean"]
     print(
         f"{summary['agent']} on {summary['env']} (seed {summary['seed']}): {summary['episodes']} episodes, "
-        f"{summary['env_steps']} env steps, {summary['n_cells']} cells, mean return of the last 10% "
+        f"{summary['env_steps']} env steps, {summary['n_cells']} {summary.get('size_unit', 'cells')}, "
+        f"mean return of the last 10% "
         f"{'-' if ret is None else f'{ret:.2f}'}, {summary['wall_s']:.1f} s -> {summary['out']}"
     )
 
@@ -208,7 +209,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         return 0
     line = (
         f"{report['agent']} on {report['env']}: return {report['mean_return']:.2f} ± {report['std_return']:.2f} "
-        f"over {report['episodes']} episodes, {report['mean_steps']:.1f} steps, {report['n_cells']} cells"
+        f"over {report['episodes']} episodes, {report['mean_steps']:.1f} steps, "
+        f"{report['n_cells']} {report.get('size_unit', 'cells')}"
     )
     if report["success_rate"] is not None:
         line += f", success {report['success_rate']:.0%}"

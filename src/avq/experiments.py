@@ -327,7 +327,7 @@ def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: boo
         "seed": config.get("seed"),
         "episodes": int(model.num_episodes),
         "env_steps": int(model.num_timesteps),
-        "n_cells": int(model.n_cells),
+        "n_cells": int(model.n_cells), "size_unit": model.size_unit,
         "final_return_mean": float(np.mean(tail)) if len(tail) else None,
         "wall_s": round(model._wall_s, 3),
         "out": str(out),
@@ -377,6 +377,7 @@ def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | Non
     result = evaluate_policy(model, env, n_episodes=episodes, seed=seed)
     report: dict[str, Any] = {
         "run": str(run_dir), "env": config["env"], "agent": config["agent"], "n_cells": int(model.n_cells),
+        "size_unit": model.size_unit,
         **{k: result[k] for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate")},
     }
     if hasattr(env.unwrapped, "layout"):

@@ -29,13 +29,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._history import EpisodeHistory
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
 from avq.agents.base import (
     BaseAgent,
     EpisodeRecord,
-    _make_env,
     check_int,
     check_range,
     check_sarsa_params,
@@ -198,6 +196,8 @@ class ActionCodebookSarsa(BaseAgent):
     midpoint within ``d_min``, or ``max_actions`` reached).
     """
 
+    size_unit = "actions"
+
     def __init__(
         self,
         env: gym.Env | str,
@@ -235,7 +235,7 @@ class ActionCodebookSarsa(BaseAgent):
         self.tiles_per_dim = _check_tiles_per_dim(tiles_per_dim)
         self.iht_size = check_int("iht_size", iht_size, 1)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
-        self._init_base(env, seed)
+        super().__init__(env, seed)
         self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
         n = self._low.shape[0]
         if isinstance(self.tiles_per_dim, list) and len(self.tiles_per_dim) != n:
@@ -254,24 +254,6 @@ class ActionCodebookSarsa(BaseAgent):
                              f"(init_actions ** action dims), not {self.max_actions}")
         # Weight columns: the grid alone when fixed, else room for max_actions (never reallocated).
         self._slots = len(self._grid) if self.fixed else self.max_actions
-
-    def _init_base(self, env: gym.Env | str, seed: int | None) -> None:
-        """``BaseAgent.__init__`` but for its ``n_actions = action_space.n``, which a Box has not
-        (here ``n_actions`` is the number of live action vectors); keep the two in step."""
-        self.env = _make_env(env)
-        self.seed = check_int("seed", seed, 0, allow_none=True)
-        self._check_spaces(self.env.observation_space, self.env.action_space)
-        seq = np.random.SeedSequence(self.seed)
-        agent_seq, env_seq, predict_seq = seq.spawn(3)
-        self._rng = np.random.default_rng(agent_seq)
-        self._predict_rng = np.random.default_rng(predict_seq)
-        self._env_seed: int | None = int(env_seq.generate_state(1)[0])
-        self.num_timesteps = 0
-        self.num_episodes = 0
-        self.history_ = EpisodeHistory()
-        self._in_episode = False
-        self._wall_s = 0.0
-        self._is_setup = False
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         name = type(self).__name__

@@ -139,6 +139,8 @@ class BaseAgent:
 
     #: Registry of learned arrays saved by :meth:`save` (name -> attribute).
     _saved_arrays: ClassVar[tuple[str, ...]] = ()
+    #: What ``n_cells`` counts, in messages: cells (states), or actions for the agents that quantize actions.
+    size_unit: ClassVar[str] = "cells"
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -148,7 +150,8 @@ class BaseAgent:
         self.env = _make_env(env)
         self.seed = check_int("seed", seed, 0, allow_none=True)
         self._check_spaces(self.env.observation_space, self.env.action_space)
-        self.n_actions = int(self.env.action_space.n)  # type: ignore[attr-defined]
+        if isinstance(self.env.action_space, spaces.Discrete):  # (agents for Box actions define their own)
+            self.n_actions = int(self.env.action_space.n)
         seq = np.random.SeedSequence(self.seed)
         agent_seq, env_seq, predict_seq = seq.spawn(3)
         self._rng = np.random.default_rng(agent_seq)
