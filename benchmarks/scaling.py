@@ -13,6 +13,12 @@ Episodes are limited to ``4 * (width + height)`` steps. The AVQ agents get
     python benchmarks/scaling.py                 # sides 12, 22, 42, 62; 5 seeds (a few minutes)
     python benchmarks/scaling.py --quick         # sides 12 and 22; 2 seeds
     python benchmarks/scaling.py --agents avq    # rerun one agent, keep the others' rows in the CSV
+    python benchmarks/scaling.py --robot         # RobotMaze lau2002 with finer and finer moves instead
+
+With ``--robot``, the maze is ``avq/RobotMaze-v0`` on ``lau2002`` with ``move`` 0.5, 0.25 and
+0.125 (the robot's positions lie on a lattice of that step: about 98 / move**2 of them), and
+full resolution is ``grid`` with one bin per lattice step (``tabular`` would make a row for every
+rounding of a float position). Budget 1 M steps, 3 seeds.
 """
 
 from __future__ import annotations
@@ -56,6 +62,54 @@ def steps_to_success(name: str, side: int, seed: int, budget: int, target: float
             "success": float(success), "wall_s": round(time.perf_counter() - t0, 2)}
 
 
+ROBOT_AGENTS = ("avq", "grid", "tiles")
+
+
+def robot_steps_to_success(name: str, move: float, seed: int, budget: int, target: float = 0.95) -> dict:
+    make = lambda: gym.make("avq/RobotMaze-v0", move=move)
+    base = make().unwrapped
+    overrides = {"bins": [round(base.layout.width / move), round(base.layout.height / move)]} if name == "grid" else {}
+    agent = avq.make_agent(name, make(), seed=seed, **overrides)
+    eval_env = make()
+    chunk = 20
+    t0 = time.perf_counter()
+    reached = False
+    success = 0.0
+    while agent.num_timesteps < budget:
+        agent.learn(total_episodes=chunk)
+        success = avq.evaluate_maze(agent, eval_env)["success_rate"]
+        if success >= target:
+            reached = True
+            break
+        chunk = min(2 * chunk, 400)
+    return {"agent": name, "move": move, "positions": round(98 / move**2), "seed": seed, "reached": reached,
+            "env_steps": int(agent.num_timesteps), "cells": int(agent.n_cells), "success": float(success),
+            "wall_s": round(time.perf_counter() - t0, 2)}
+
+
+def robot_main(csv_path: str, seeds: int, budget: int) -> None:
+    moves = (0.5, 0.25, 0.125)
+    jobs = [(name, move, seed) for move in moves for name in ROBOT_AGENTS for seed in range(seeds)]
+    print(f"{len(jobs)} RobotMaze runs: moves {moves}, {seeds} seeds, budget {budget} steps")
+    rows = Parallel(n_jobs=-1)(delayed(robot_steps_to_success)(n, m, sd, budget) for n, m, sd in jobs)
+    Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
+    with open(csv_path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    print(f"\n{'move':>6} {'positions':>9} {'agent':<6} {'steps to 95% (median)':>22} {'reached':>8} "
+          f"{'cells':>6} {'success then (median)':>22}")
+    for move in moves:
+        for name in ROBOT_AGENTS:
+            rs = [r for r in rows if r["move"] == move and r["agent"] == name]
+            got = sum(r["reached"] for r in rs)
+            mark = "" if got == len(rs) else ">"
+            print(f"{move:>6} {rs[0]['positions']:>9} {name:<6} "
+                  f"{mark + format(int(np.median([r['env_steps'] for r in rs])), ','):>22} {got:>5}/{len(rs)} "
+                  f"{int(np.median([r['cells'] for r in rs])):>6} {np.median([r['success'] for r in rs]):>22.2f}")
+    print(f"\nwrote {csv_path}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -64,7 +118,12 @@ def main() -> None:
     ap.add_argument("--csv", default="docs/data/scaling.csv")
     ap.add_argument("--figure", default="docs/figures/scaling.png")
     ap.add_argument("--agents", default=",".join(AGENTS), help="comma-separated agents to run (default: all)")
+    ap.add_argument("--robot", action="store_true", help="RobotMaze with finer moves (see above)")
     args = ap.parse_args()
+    if args.robot:
+        robot_main("docs/data/scaling_robot.csv" if args.csv == "docs/data/scaling.csv" else args.csv,
+                   args.seeds or 3, min(args.budget, 1_000_000))
+        return
     names = [n.strip() for n in args.agents.split(",")]
     if any(n not in AGENTS for n in names):
         ap.error(f"--agents: choose from {', '.join(AGENTS)}")
