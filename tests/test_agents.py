@@ -279,12 +279,37 @@ def test_epsilon_schedule_decays_per_episode_to_its_floor_and_survives_loading(t
             make_agent("avq", maze(), **bad)
 
 
+def test_alpha_schedule_decays_per_episode_and_is_the_step_of_the_updates(tmp_path):
+    from avq.agents import _avq_core as core
+
+    agent = make_agent("avq-maze", maze(), seed=0, alpha=0.8, alpha_decay=0.5, alpha_min=0.15)
+    seen = []
+    agent.learn(total_episodes=4, callback=lambda a, r: seen.append(float(a._P[core.ALPHA])))
+    assert seen == pytest.approx([0.4, 0.2, 0.15, 0.15], rel=1e-12)  # 0.8 * 0.5**k, floored at 0.15
+    assert agent.alpha == 0.8  # the parameter itself is untouched
+    loaded = avq.load(agent.save(tmp_path / "m.zip"))
+    assert loaded._P[core.ALPHA] == agent._P[core.ALPHA]
+    # The scheduled step is the one used: a constant alpha of 0.4 for episode 2 gives the same values as
+    # a schedule that is at 0.4 then (0.8 after one episode of alpha 0.8 ... compared on whole runs).
+    fused = make_agent("avq-maze", maze(), seed=3, alpha_decay=0.98).learn(total_episodes=60)
+    generic = make_agent("avq-maze", maze(), seed=3, alpha_decay=0.98, fused=False).learn(total_episodes=60)
+    constant = make_agent("avq-maze", maze(), seed=3).learn(total_episodes=60)
+    assert np.array_equal(fused.q_, generic.q_) and np.array_equal(fused.codebook_, generic.codebook_)
+    assert not np.array_equal(fused.episode_history()["steps"], constant.episode_history()["steps"])
+    for bad in ({"alpha_decay": 0.0}, {"alpha_decay": 1.5}, {"alpha_min": -0.1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            make_agent("avq", maze(), **bad)
+
+
 def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     from avq.agents.registry import AGENTS, TASK_DEFAULTS, agent_defaults
 
     maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
     assert maze.get_params() == {**avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
                                  "cycle_split": True, "seed": 0}
+    from avq.envs import GridMaze
+
+    assert avq.make_agent("avq", GridMaze(), seed=0).get_params() == maze.get_params()  # built without gym.make
     robot = avq.make_agent("avq", "avq/RobotMaze-v0")
     assert robot.collision_split and not robot.cycle_split and robot.max_cells == 10_000
     general = avq.make_agent("avq", gym.make("MountainCar-v0"))

@@ -90,11 +90,17 @@ def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "0"], "--episodes must be >= 1"),
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "3", "--timesteps", "3"], "not allowed with"),
         (["train", "--config", "missing.yml"], "cannot read config"),
-        (["evaluate", "no-such-dir"], "no config.yml"),
+        (["evaluate", "no-such-dir"], "no such run directory"),
+        (["evaluate", "afile.txt"], "is a file; give the run directory"),
+        (["train", "--env", "avq/GridMaze-v0", "--episodes", "2", "--out", "afile.txt"], "is a file; give a directory"),
+        (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile.txt"], "is a file; give a directory"),
+        (["train", "--env", "Pendulum-v1", "--episodes", "2"], "use the agent 'avq-actions'"),
     ],
 )
 def test_train_and_evaluate_mistakes_exit_2_with_one_line(args, needle, tmp_path):
+    (tmp_path / "afile.txt").write_text("keep me")
     proc = run_cli(*args, cwd=tmp_path)
+    assert (tmp_path / "afile.txt").read_text() == "keep me"
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in proc.stderr
@@ -121,7 +127,7 @@ def test_bad_config_files(tmp_path):
     [
         (["train", "--env", "avq/GridMaze-v0", "--set", "seed=5"], "--seed"),
         (["evaluate", "x", "--seed", "-1"], "--seed must be >= 0"),
-        (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile"], "Not a directory"),
+        (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile"], "is a file; give a directory"),
     ],
 )
 def test_more_mistakes_exit_2(args, needle, tmp_path):

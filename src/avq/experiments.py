@@ -109,6 +109,8 @@ def reproduce(
     if start == "fixed" and lay.start is None:
         raise ValueError(f"layout {lay.name} has no 'S', so start 'fixed' is impossible")
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file; give a directory for the results")
     (out / "models").mkdir(parents=True, exist_ok=True)
     layout_arg: LayoutSpec = list(lay.rows)
     jobs = [(name, int(seed)) for name in agents for seed in seeds]
@@ -116,6 +118,8 @@ def reproduce(
     args = [(name, layout_arg, seed, trials, start, str(out / "models" / f"{name}__seed{seed}.zip"))
             for name, seed in jobs]
     t0 = time.perf_counter()
+    if log is not None and not _kernels_cached():
+        log("compiling the kernels, once for this installation (30-60 s) ...")
     results: list[ReproduceRun] = []
     if n_jobs == 1:
         stream = (train_maze_run(*a) for a in args)
@@ -178,12 +182,22 @@ def reproduce(
     return summary
 
 
+def _kernels_cached() -> bool:
+    """Whether Numba's on-disk cache already holds the fused maze loop (else the first run compiles)."""
+    import numba
+
+    from avq.agents import _fused
+
+    cache_dir = Path(numba.config.CACHE_DIR or Path(_fused.__file__).parent / "__pycache__")
+    return cache_dir.is_dir() and any(cache_dir.rglob("_fused.run_grid_maze*.nbi"))
+
+
 def format_table(summary: dict[str, Any]) -> str:
     """The reproduction's table: one row per agent, spread over seeds."""
     head = f"{'agent':<12} {'cells med [min-max]':>20} {'success mean [min-max]':>24} {'path ratio':>11} {'env steps':>10} {'seconds':>8}"
     lines = [
         f"layout {summary['layout']}: {summary['n_states']} states, {summary['trials']} trials, "
-        f"{len(summary['seeds'])} seeds",
+        f"{len(summary['seeds'])} seed{'s' if len(summary['seeds']) != 1 else ''}",
         head,
         "-" * len(head),
     ]
@@ -197,6 +211,8 @@ def format_table(summary: dict[str, Any]) -> str:
             f"{f'{succ.mean():.0%} [{succ.min():.0%}-{succ.max():.0%}]':>24} {ratio:>11} "
             f"{np.mean(res['env_steps']):>10.0f} {np.mean(res['wall_s']):>8.2f}"
         )
+    lines.append("success: greedy policy from every start; path ratio: greedy over shortest steps; "
+                 "env steps, seconds: training, mean per run")
     return "\n".join(lines)
 
 
@@ -253,6 +269,8 @@ def train(
     env = make_env(env_id, env_kwargs)
     model = make_agent(agent, env, seed=seed, **(params or {}))
     out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file; give a directory for the run")
     if (out / "model.zip").exists():
         raise ValueError(f"{out} already holds a trained run; choose another --out")
     if (out / "checkpoint.zip").exists():
@@ -352,6 +370,10 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     import yaml
 
     path = Path(run_dir) / "config.yml"
+    if not Path(run_dir).exists():
+        raise ValueError(f"{run_dir}: no such run directory")
+    if Path(run_dir).is_file():
+        raise ValueError(f"{run_dir} is a file; give the run directory (written by 'avq train')")
     if not path.is_file():
         raise ValueError(f"{run_dir}: no config.yml here; is this a directory written by 'avq train'?")
     try:

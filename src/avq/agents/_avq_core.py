@@ -40,7 +40,8 @@ from avq.rules import collision_rule, may_append, mean_square_difference
 
 # P: float parameters
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN, ADAPT = range(14)
-N_P = 14
+ALPHA0, ALPHA_DECAY, ALPHA_MIN = range(14, 17)
+N_P = 17
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
 PRUNE_AFTER = 8
@@ -400,11 +401,20 @@ def epsilon_at(P, episodes: int) -> float:
 
 
 @njit(cache=True)
+def alpha_at(P, episodes: int) -> float:
+    """The step size after ``episodes`` episodes: ``max(alpha_min, alpha * decay ** episodes)``."""
+    if P[ALPHA_DECAY] == 1.0:
+        return P[ALPHA0]
+    return max(P[ALPHA_MIN], P[ALPHA0] * P[ALPHA_DECAY] ** episodes)
+
+
+@njit(cache=True)
 def end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec_row) -> None:
     """Count the episode, run the merge pass when due, and fill its record row."""
     S[EPISODES] += 1
     S[IN_EPISODE] = 0
     P[EPS] = epsilon_at(P, S[EPISODES])
+    P[ALPHA] = alpha_at(P, S[EPISODES])
     merges = 0
     if IP[MERGE_EVERY] > 0 and S[EPISODES] % IP[MERGE_EVERY] == 0:
         merges = merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S)

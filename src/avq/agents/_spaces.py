@@ -83,4 +83,8 @@ def check_box_discrete(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
     if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
         raise ValueError(f"{agent} needs a 1-D Box observation space, not {obs_space}")
     if not isinstance(act_space, spaces.Discrete):
-        raise ValueError(f"{agent} needs a Discrete action space, not {act_space}")
+        raise ValueError(
+            f"{agent} needs a Discrete action space, not {act_space}"
+            + ("; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
+               if isinstance(act_space, spaces.Box) else "")
+        )

@@ -48,6 +48,9 @@ class AVQSarsa(BaseAgent):
         epsilon_decay: Beyond the paper: after ``k`` episodes the exploration rate is
             ``max(epsilon_min, epsilon * epsilon_decay ** k)`` (1, the default: constant).
         epsilon_min: The floor of that schedule.
+        alpha_decay: Beyond the paper: after ``k`` episodes the step size is
+            ``max(alpha_min, alpha * alpha_decay ** k)`` (1, the default: constant).
+        alpha_min: The floor of that schedule.
         collision_split: Beyond the paper: on a collision within ``d_min`` of the
             cell's own vector, where the paper sets ``Q[i, a] = chi`` for the whole
             cell, split instead when ``a`` is the cell's greedy action and ``x`` is not
@@ -138,6 +141,8 @@ class AVQSarsa(BaseAgent):
         prune_after: int = 0,
         epsilon_decay: float = 1.0,
         epsilon_min: float = 0.0,
+        alpha_decay: float = 1.0,
+        alpha_min: float = 0.0,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
@@ -160,6 +165,8 @@ class AVQSarsa(BaseAgent):
         self.merge_pairs = merge_pairs
         self.epsilon_decay = check_range("epsilon_decay", epsilon_decay, 0.0, 1.0, low_open=True)
         self.epsilon_min = check_range("epsilon_min", epsilon_min, 0.0, 1.0)
+        self.alpha_decay = check_range("alpha_decay", alpha_decay, 0.0, 1.0, low_open=True)
+        self.alpha_min = check_range("alpha_min", alpha_min, 0.0, 1.0)
         if not isinstance(collision_split, (bool, np.bool_)):
             raise ValueError(f"collision_split must be True or False, not {collision_split!r}")
         self.collision_split = bool(collision_split)
@@ -239,6 +246,8 @@ class AVQSarsa(BaseAgent):
             self.alpha, self.lam, self.gamma, self.d_min, self.rho, self.chi, self.q_init)
         P[[core.EPS0, core.EPS_DECAY, core.EPS_MIN]] = self.epsilon, self.epsilon_decay, self.epsilon_min
         P[core.EPS] = core.epsilon_at(P, self.num_episodes)
+        P[[core.ALPHA0, core.ALPHA_DECAY, core.ALPHA_MIN]] = self.alpha, self.alpha_decay, self.alpha_min
+        P[core.ALPHA] = core.alpha_at(P, self.num_episodes)
         P[core.ADAPT] = self.adapt_rate
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
@@ -432,6 +441,7 @@ class AVQSarsa(BaseAgent):
         self._S[core.EPISODES] = self.num_episodes
         self._S[core.GEOM] += 1
         self._P[core.EPS] = core.epsilon_at(self._P, self.num_episodes)
+        self._P[core.ALPHA] = core.alpha_at(self._P, self.num_episodes)
 
 
 #: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.

@@ -138,17 +138,31 @@ def agent_defaults(name: str, env_id: str | None = None) -> dict[str, Any]:
     return dict(TASK_DEFAULTS.get(name, {}).get(env_id or "", AGENTS[name][1]))
 
 
+def _env_id(env: gym.Env | str) -> str | None:
+    """The registered id of ``env``: its ``spec``, or for an environment built without ``gymnasium.make``
+    the id registered for its class."""
+    if isinstance(env, str):
+        return env
+    spec = getattr(env, "spec", None)
+    if spec is not None:
+        return spec.id
+    cls = type(env.unwrapped)
+    target = f"{cls.__module__}:{cls.__qualname__}"
+    return next((env_id for env_id, s in gym.registry.items() if s.entry_point == target), None)
+
+
 def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrides: Any) -> BaseAgent:
     """Create the agent registered as ``name`` with its defaults, updated by ``overrides``.
 
     Some agents have defaults of their own on some environments (:data:`TASK_DEFAULTS`): ``avq`` on
     ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` uses the collision-driven maze rules. The
-    environment is recognised by its registered id (``env.spec.id``).
+    environment is recognised by its registered id (``env.spec.id``, or the id registered for its class
+    when it was built without ``gymnasium.make``).
 
     Raises:
         ValueError: unknown name, or an override that is not a parameter of the agent.
     """
-    env_id = env if isinstance(env, str) else getattr(env.spec, "id", None)
+    env_id = _env_id(env)
     defaults = agent_defaults(name, env_id)
     cls = AGENTS[name][0]
     if "seed" in overrides:

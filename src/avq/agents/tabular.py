@@ -63,7 +63,9 @@ class TabularSarsa(BaseAgent):
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(f"TabularSarsa needs a Discrete action space, not {act_space}")
+            raise ValueError(f"TabularSarsa needs a Discrete action space, not {act_space}"
+                             + ("; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
+                                if isinstance(act_space, spaces.Box) else ""))
         if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
             raise ValueError(f"TabularSarsa needs a Discrete or Box observation space, not {obs_space}")
         self._discrete = isinstance(obs_space, spaces.Discrete)
