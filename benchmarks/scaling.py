@@ -141,7 +141,9 @@ def main() -> None:
                      env_steps=int(r["env_steps"]), cells=int(r["cells"]), success=float(r["success"]),
                      wall_s=float(r["wall_s"]))
         rows = kept + rows
-    present = [n for n in AGENTS if any(r["agent"] == n for r in rows)]
+    # The agents with runs at every size (kept rows from a run over other sizes are left out).
+    present = [n for n in AGENTS if all(any(r["agent"] == n and r["side"] == sd for r in rows) for sd in sides)]
+    rows = [r for r in rows if r["agent"] in present]
     Path(args.csv).parent.mkdir(parents=True, exist_ok=True)
     with open(args.csv, "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))

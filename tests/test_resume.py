@@ -105,3 +105,27 @@ def test_progress_log_repairs_a_torn_line_and_drops_rows_past_the_checkpoint(tmp
     (tmp_path / "other.csv").write_text("a,b\n1,2\n")
     with pytest.raises(ValueError, match="not a progress file"):
         ProgressLog(tmp_path / "other.csv", ("episode",)).sync(_history(1))
+
+
+def test_a_run_written_before_an_option_existed_resumes_with_the_option_off(tmp_path):
+    # A run of `avq` on the grid maze from a version without cycle_split and the later options: its
+    # config.yml lacks them, and so does its checkpoint (here: written with them off). Resuming must take
+    # the class's defaults for them (off), not the maze defaults of `avq` (cycle_split on).
+    import yaml
+
+    from avq.experiments import resume_train, train
+
+    out = tmp_path / "run"
+    train("avq/GridMaze-v0", agent="avq", episodes=30, seed=1, out=out, checkpoint_every=10, progress=False,
+          params={"cycle_split": False})
+    config = yaml.safe_load((out / "config.yml").read_text())
+    for key in ("cycle_split", "adapt_rate", "prune_after", "alpha_decay", "alpha_min"):
+        del config["params"][key]
+    (out / "config.yml").write_text(yaml.safe_dump(config))
+    finished = avq.load(out / "model.zip")
+    (out / "model.zip").unlink()
+    (out / "summary.json").unlink()
+    resume_train(out, progress=False)
+    resumed = avq.load(out / "model.zip")
+    assert not resumed.cycle_split and resumed.num_episodes == 30
+    assert np.array_equal(resumed.q_, finished.q_)

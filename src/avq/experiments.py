@@ -312,18 +312,37 @@ def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str,
     for leftover in out.glob(".*.tmp"):  # temporary files of writes that a kill interrupted
         leftover.unlink()
     env = make_env(config["env"], config.get("env_kwargs"))
+    params = _recorded_params(config)
     checkpoint = out / "checkpoint.zip"
     if checkpoint.exists():
         from avq.agents.base import load
 
         model = load(checkpoint, env=env)
-        expected = make_agent(config["agent"], env, seed=config.get("seed"), **(config.get("params") or {}))
+        expected = make_agent(config["agent"], env, seed=config.get("seed"), **params)
         if type(model) is not type(expected) or model.get_params() != expected.get_params():
             raise ValueError(f"{checkpoint} does not belong to this run: its agent or parameters differ from "
                              f"{out / 'config.yml'}")
     else:
-        model = make_agent(config["agent"], env, seed=config.get("seed"), **(config.get("params") or {}))
+        model = make_agent(config["agent"], env, seed=config.get("seed"), **params)
     return _run_to_the_end(model, out, config, progress)
+
+
+def _recorded_params(config: dict[str, Any]) -> dict[str, Any]:
+    """The parameters a run's ``config.yml`` records, completed with the class's own defaults.
+
+    ``avq train`` records every parameter, so only a parameter added by a later version of avq can be
+    missing; it takes the class's default (the option off, as the run had it), not the registry's
+    defaults, which may have changed since (``avq`` on the mazes, say).
+    """
+    import inspect
+
+    params = dict(config.get("params") or {})
+    if config.get("agent") in AGENTS:
+        signature = inspect.signature(AGENTS[config["agent"]][0].__init__)
+        for name, p in signature.parameters.items():
+            if name not in ("self", "env", "seed") and name not in params and p.default is not p.empty:
+                params[name] = p.default
+    return params
 
 
 def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: bool) -> dict[str, Any]:

@@ -167,6 +167,11 @@ class AVQSarsa(BaseAgent):
         self.epsilon_min = check_range("epsilon_min", epsilon_min, 0.0, 1.0)
         self.alpha_decay = check_range("alpha_decay", alpha_decay, 0.0, 1.0, low_open=True)
         self.alpha_min = check_range("alpha_min", alpha_min, 0.0, 1.0)
+        for name, start, decay, floor in (("alpha", self.alpha, self.alpha_decay, self.alpha_min),
+                                          ("epsilon", self.epsilon, self.epsilon_decay, self.epsilon_min)):
+            if decay < 1.0 and floor > start:
+                raise ValueError(f"{name}_min ({floor}) must not exceed {name} ({start}): the schedule decays "
+                                 f"from {name} down to {name}_min")
         if not isinstance(collision_split, (bool, np.bool_)):
             raise ValueError(f"collision_split must be True or False, not {collision_split!r}")
         self.collision_split = bool(collision_split)

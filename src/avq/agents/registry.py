@@ -143,6 +143,8 @@ def _env_id(env: gym.Env | str) -> str | None:
     the id registered for its class."""
     if isinstance(env, str):
         return env
+    if not isinstance(env, gym.Env):
+        return None  # the agent's constructor says what it needs
     spec = getattr(env, "spec", None)
     if spec is not None:
         return spec.id
@@ -162,6 +164,7 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     Raises:
         ValueError: unknown name, or an override that is not a parameter of the agent.
     """
+    agent_defaults(name)  # an unknown name first
     env_id = _env_id(env)
     defaults = agent_defaults(name, env_id)
     cls = AGENTS[name][0]
