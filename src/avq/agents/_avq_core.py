@@ -392,20 +392,24 @@ def prune_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     return n_stale
 
 
+@njit(cache=True, inline="always")
+def _decayed(start: float, decay: float, floor: float, episodes: int) -> float:
+    """``max(floor, start * decay ** episodes)``; exactly ``start`` when ``decay`` is 1."""
+    if decay == 1.0:
+        return start
+    return max(floor, start * decay ** episodes)
+
+
 @njit(cache=True)
 def epsilon_at(P, episodes: int) -> float:
     """The exploration rate after ``episodes`` episodes: ``max(epsilon_min, epsilon * decay ** episodes)``."""
-    if P[EPS_DECAY] == 1.0:
-        return P[EPS0]
-    return max(P[EPS_MIN], P[EPS0] * P[EPS_DECAY] ** episodes)
+    return _decayed(P[EPS0], P[EPS_DECAY], P[EPS_MIN], episodes)
 
 
 @njit(cache=True)
 def alpha_at(P, episodes: int) -> float:
     """The step size after ``episodes`` episodes: ``max(alpha_min, alpha * decay ** episodes)``."""
-    if P[ALPHA_DECAY] == 1.0:
-        return P[ALPHA0]
-    return max(P[ALPHA_MIN], P[ALPHA0] * P[ALPHA_DECAY] ** episodes)
+    return _decayed(P[ALPHA0], P[ALPHA_DECAY], P[ALPHA_MIN], episodes)
 
 
 @njit(cache=True)

@@ -30,7 +30,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
-from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents._td import epsilon_greedy
 from avq.agents.base import (
     BaseAgent,
     EpisodeRecord,
@@ -39,7 +39,7 @@ from avq.agents.base import (
     check_sarsa_params,
     episode_record,
 )
-from avq.agents.tiles import _check_tiles_per_dim, mark_traces
+from avq.agents.tiles import _check_tiles_per_dim, advance_tile_sarsa
 from avq.tilecoding import TileCoder
 
 __all__ = ["ActionCodebookSarsa", "gabriel_neighbours", "merged_vector", "plan_growth", "plan_merges",
@@ -362,36 +362,7 @@ class ActionCodebookSarsa(BaseAgent):
         self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, w, e, coder = self.env, self._w, self._e, self._coder
-        active, a = self._ep_active, self._ep_action
-        replacing = self.traces == "replacing"
-        decay = self.gamma * self.lam
-        n = 0
-        ended = False
-        while n < max_steps:
-            obs, r, terminated, truncated, _ = env.step(self._env_actions[a])
-            n += 1
-            self._check_finite(obs, r, self._ep_steps + n)
-            r = float(r)
-            self._ep_return += r
-            q_sa = self._values(active)[a]
-            if terminated:
-                active2, a2 = active, a
-                delta = sarsa_td_error(q_sa, r, self.gamma, 0.0, True)
-            else:
-                active2 = self._features(obs)
-                q2 = self._values(active2)
-                a2 = epsilon_greedy(q2, self.epsilon, self._rng)
-                delta = sarsa_td_error(q_sa, r, self.gamma, q2[a2], False)
-            mark_traces(e, active, a, replacing)
-            sarsa_lambda_update(w, e, int(active[0]), a, delta, self._step_size, decay, replacing, coder.n_used)
-            active, a = active2, a2
-            if terminated or truncated:
-                ended = True
-                break
-        self._ep_active, self._ep_action = active, a
-        self._ep_steps += n
-        return n, ended
+        return advance_tile_sarsa(self, max_steps, self._env_actions)
 
     def _end_episode(self) -> EpisodeRecord:
         grown = merges = refused = 0

@@ -37,6 +37,42 @@ def mark_traces(e: np.ndarray, active: np.ndarray, a: int, replacing: bool) -> N
         np.add.at(e[:, a], active[1:], 1.0)
 
 
+def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | None = None) -> tuple[int, bool]:
+    """The Sarsa(λ) steps of a tile-coded agent (``TileSarsa``, ``ActionCodebookSarsa``) for at most
+    ``max_steps`` steps; action ``a`` is sent to the environment as ``env_actions[a]`` if given."""
+    env, w, e, coder = agent.env, agent._w, agent._e, agent._coder
+    active, a = agent._ep_active, agent._ep_action
+    replacing = agent.traces == "replacing"
+    decay = agent.gamma * agent.lam
+    n = 0
+    ended = False
+    while n < max_steps:
+        obs, r, terminated, truncated, _ = env.step(a if env_actions is None else env_actions[a])
+        n += 1
+        agent._check_finite(obs, r, agent._ep_steps + n)
+        r = float(r)
+        agent._ep_return += r
+        q_sa = agent._values(active)[a]
+        if terminated:
+            active2, a2 = active, a
+            delta = sarsa_td_error(q_sa, r, agent.gamma, 0.0, True)
+        else:
+            active2 = agent._features(obs)
+            q2 = agent._values(active2)
+            a2 = epsilon_greedy(q2, agent.epsilon, agent._rng)
+            delta = sarsa_td_error(q_sa, r, agent.gamma, q2[a2], False)
+        mark_traces(e, active, a, replacing)
+        # Rows are handed out in order of first use: rows past n_used have zero traces.
+        sarsa_lambda_update(w, e, int(active[0]), a, delta, agent._step_size, decay, replacing, coder.n_used)
+        active, a = active2, a2
+        if terminated or truncated:
+            ended = True
+            break
+    agent._ep_active, agent._ep_action = active, a
+    agent._ep_steps += n
+    return n, ended
+
+
 class TileSarsa(BaseAgent):
     """Linear Sarsa(λ) on tile-coded features, like Sutton & Barto's Mountain Car agent.
 
@@ -174,37 +210,7 @@ class TileSarsa(BaseAgent):
         self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, w, e, coder = self.env, self._w, self._e, self._coder
-        active, a = self._ep_active, self._ep_action
-        replacing = self.traces == "replacing"
-        decay = self.gamma * self.lam
-        n = 0
-        ended = False
-        while n < max_steps:
-            obs, r, terminated, truncated, _ = env.step(a)
-            n += 1
-            self._check_finite(obs, r, self._ep_steps + n)
-            r = float(r)
-            self._ep_return += r
-            q_sa = self._values(active)[a]
-            if terminated:
-                active2, a2 = active, a
-                delta = sarsa_td_error(q_sa, r, self.gamma, 0.0, True)
-            else:
-                active2 = self._features(obs)
-                q2 = self._values(active2)
-                a2 = epsilon_greedy(q2, self.epsilon, self._rng)
-                delta = sarsa_td_error(q_sa, r, self.gamma, q2[a2], False)
-            mark_traces(e, active, a, replacing)
-            # Rows are handed out in order of first use: rows past n_used have zero traces.
-            sarsa_lambda_update(w, e, int(active[0]), a, delta, self._step_size, decay, replacing, coder.n_used)
-            active, a = active2, a2
-            if terminated or truncated:
-                ended = True
-                break
-        self._ep_active, self._ep_action = active, a
-        self._ep_steps += n
-        return n, ended
+        return advance_tile_sarsa(self, max_steps)
 
     def _end_episode(self) -> EpisodeRecord:
         coder = self._coder
