@@ -511,3 +511,31 @@ def test_prune_after_removes_cells_without_decisions_for_that_many_episodes():
     assert agent.q_[0, 1 - agent.env.unwrapped.actions[1][0]] == q1[1 - agent.env.unwrapped.actions[1][0]]
     with pytest.raises(ValueError, match="prune_after"):
         agent_for([ep1], prune_after=-1)
+
+
+def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
+    from avq.agents import _avq_core as core
+
+    # By hand: Q[0] = (1, 0.5), counts (1, 0), bonus 2: 1 + 2/sqrt(2) = 2.414 < 0.5 + 2/sqrt(1) = 2.5.
+    Q = np.array([[1.0, 0.5]])
+    born = np.array([[0, 0, 1, 0]])
+    P = np.zeros(core.N_P)
+    P[core.BONUS] = 2.0
+    out = np.empty((1, 2))
+    core.bonus_values(Q, born, P, 0, out)
+    assert np.allclose(out, [[1 + 2 / np.sqrt(2), 2.5]])
+    # One-step episodes with reward 0 and q_init 0: Q stays 0, so only the counts decide. With the bonus,
+    # after a tie (broken at random) the next decision takes the other action: the actions of episodes
+    # 2k and 2k+1 always differ, and the counts stay even. Without it, ties are broken at random.
+    ep = ((0, 0), [((0.1, 0), 0.0, True, NO, NO)])
+    agent, env = agent_for([ep], explore_bonus=1.0)
+    agent.learn(total_episodes=40)
+    acts = [a[0] for a in env.actions]
+    assert all(acts[k] != acts[k + 1] for k in range(0, 40, 2))
+    assert agent._born[0, 2:].tolist() == [20, 20] and agent.q_.tolist() == [[0.0, 0.0]]
+    plain, env = agent_for([ep])
+    plain.learn(total_episodes=40)
+    acts = [a[0] for a in env.actions]
+    assert any(acts[k] == acts[k + 1] for k in range(0, 40, 2))
+    with pytest.raises(ValueError, match="explore_bonus"):
+        agent_for([ep], explore_bonus=-1.0)

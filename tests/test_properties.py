@@ -318,10 +318,12 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
     Q = np.zeros((cap, m))
     Q[:p] = q
     E = np.ones((cap, m))
-    B = np.zeros((cap, 2), np.int64)
+    B = np.zeros((cap, 2 + m), np.int64)
     B[:p, 0] = born
     seen = np.array(data.draw(st.lists(st.integers(0, episodes), min_size=p, max_size=p)), np.int64)
     B[:p, 1] = seen
+    counts = np.array(data.draw(st.lists(st.integers(0, 50), min_size=p * m, max_size=p * m)), np.int64)
+    B[:p, 2:] = counts.reshape(p, m)
     act = np.zeros(cap + 1, np.int64)
     act[0] = min(p, 2)
     act[1:3] = [0, 1]
@@ -350,6 +352,8 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
         assert B[mapping[r], 0] == (episodes if merged else born[r])
         partner = [j if i == r else i for i, j in pairs if r in (i, j)]
         assert B[mapping[r], 1] == (max(seen[r], seen[partner[0]]) if merged else seen[r])
+        merged_counts = counts.reshape(p, m)[r] + (counts.reshape(p, m)[partner[0]] if merged else 0)
+        assert B[mapping[r], 2:].tolist() == merged_counts.tolist()  # decision counts add up
     assert not Q[n_new:p].any()  # freed rows are cleared
     if n:  # a merge clears every trace
         assert not E[:p].any() and act[0] == 0

@@ -15,8 +15,9 @@ from the very same generator inside the compiled loop
 so both paths give identical results.
 
 State lives in preallocated arrays: ``V`` codebook ``(cap, n)``, ``Q`` and ``E``
-``(cap, m)``, ``born`` ``(cap, 2)`` the episode (1-based) that created each cell and
-the last episode in which the agent took a decision in it; ``act`` ``(cap + 1,)`` the rows whose traces are
+``(cap, m)``, ``born`` ``(cap, 2 + m)`` the episode (1-based) that created each cell,
+the last episode in which the agent took a decision in it, and how many decisions
+it took there with each action; ``act`` ``(cap + 1,)`` the rows whose traces are
 non-zero this episode (``act[0]`` of them), so that an update touches only those;
 ``pc`` ``(cap + 1, 2)`` the mutual-nearest pairs of the current geometry
 (``pc[0] = (geometry version, count)``), recomputed only after the codebook
@@ -40,8 +41,8 @@ from avq.rules import collision_rule, may_append, mean_square_difference
 
 # P: float parameters
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN, ADAPT = range(14)
-ALPHA0, ALPHA_DECAY, ALPHA_MIN = range(14, 17)
-N_P = 17
+ALPHA0, ALPHA_DECAY, ALPHA_MIN, BONUS = range(14, 18)
+N_P = 18
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
 PRUNE_AFTER = 8
@@ -131,10 +132,20 @@ def _append(V, Q, E, born, S, x, parent: int) -> int:
         E[c, b] = 0.0
     born[c, 0] = S[EPISODES] + 1
     born[c, 1] = S[EPISODES] + 1
+    for b in range(2, born.shape[1]):
+        born[c, b] = 0
     S[SIZE] = c + 1
     S[APPENDS] += 1
     S[GEOM] += 1
     return c
+
+
+@njit(cache=True, inline="always")
+def bonus_values(Q, born, P, j: int, out) -> None:
+    """``out[0] = Q[j] + explore_bonus / sqrt(1 + n)``, ``n`` the decisions taken with each action in
+    cell ``j``: the values that count-based exploration takes its greedy decision on."""
+    for b in range(Q.shape[1]):
+        out[0, b] = Q[j, b] + P[BONUS] / np.sqrt(1.0 + born[j, 2 + b])
 
 
 @njit(cache=True, inline="always")
@@ -238,6 +249,7 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
     """
     i = S[CELL]
     a = S[ACTION]
+    born[i, 2 + a] += 1  # one more decision (i, a)
     greedy = True  # was the decision (i, a) greedy? (a best action of Q[i], ties included)
     for b in range(Q.shape[1]):
         if Q[i, b] > Q[i, a]:
@@ -341,6 +353,8 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
                 Q[i, b] = (Q[i, b] + Q[j, b]) / 2.0  # avq.rules.merged_values
             born[i, 0] = S[EPISODES]
             born[i, 1] = max(born[i, 1], born[j, 1])
+            for b in range(2, born.shape[1]):
+                born[i, b] += born[j, b]
     mapping = merge_kernel(V, size, chosen)
     compact_rows(Q, mapping)
     compact_rows(born, mapping)
@@ -381,8 +395,8 @@ def prune_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
                 V[w, d] = V[r, d]
             for b in range(Q.shape[1]):
                 Q[w, b] = Q[r, b]
-            born[w, 0] = born[r, 0]
-            born[w, 1] = born[r, 1]
+            for b in range(born.shape[1]):
+                born[w, b] = born[r, b]
         w += 1
     Q[w:size, :] = 0.0
     E[:size, :] = 0.0

@@ -14,8 +14,8 @@ from numba import njit
 
 from avq._kernels import borrowed, nearest_index
 from avq.agents._avq_core import (
-    ACTION, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
-    begin_episode, end_episode, greedy_ties, learn, nth_tie, observe, observe_at,
+    ACTION, BONUS, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
+    begin_episode, bonus_values, end_episode, greedy_ties, learn, nth_tie, observe, observe_at,
 )
 from avq.envs.grid_maze import grid_move
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
@@ -40,6 +40,7 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F = _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F)
     walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
+    scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
     steps = 0
     episodes = 0
     # Nearest cell of every grid position, valid while the codebook does not change.
@@ -70,6 +71,10 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
             cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
             if rng.random() < P[EPS]:
                 S[ACTION] = rng.integers(0, Q.shape[1])
+            elif P[BONUS] > 0.0:  # count-based exploration: the greedy decision on bonus values
+                bonus_values(Q, born, P, cell, scr)
+                b, n_ties = greedy_ties(scr, 0)
+                S[ACTION] = b if n_ties == 1 else nth_tie(scr, 0, rng.integers(0, n_ties))
             else:
                 b, n_ties = greedy_ties(Q, cell)
                 S[ACTION] = b if n_ties == 1 else nth_tie(Q, cell, rng.integers(0, n_ties))
@@ -102,6 +107,11 @@ def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
         if not terminated:
             if rng.random() < P[EPS]:
                 a_next = rng.integers(0, Q.shape[1])
+            elif P[BONUS] > 0.0:
+                bonus_values(Q, born, P, j, scr)
+                a_next, n_ties = greedy_ties(scr, 0)
+                if n_ties > 1:
+                    a_next = nth_tie(scr, 0, rng.integers(0, n_ties))
             else:
                 a_next, n_ties = greedy_ties(Q, j)
                 if n_ties > 1:
@@ -124,6 +134,7 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F = _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F)
     grid, starts, dirs, pos, rec = borrowed(grid), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
+    scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
     steps = 0
     episodes = 0
     x = np.empty(V.shape[1])
@@ -146,6 +157,10 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
             cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
             if rng.random() < P[EPS]:
                 S[ACTION] = rng.integers(0, Q.shape[1])
+            elif P[BONUS] > 0.0:  # count-based exploration: the greedy decision on bonus values
+                bonus_values(Q, born, P, cell, scr)
+                b, n_ties = greedy_ties(scr, 0)
+                S[ACTION] = b if n_ties == 1 else nth_tie(scr, 0, rng.integers(0, n_ties))
             else:
                 b, n_ties = greedy_ties(Q, cell)
                 S[ACTION] = b if n_ties == 1 else nth_tie(Q, cell, rng.integers(0, n_ties))
@@ -167,6 +182,11 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
         if not terminated:
             if rng.random() < P[EPS]:
                 a_next = rng.integers(0, Q.shape[1])
+            elif P[BONUS] > 0.0:
+                bonus_values(Q, born, P, j, scr)
+                a_next, n_ties = greedy_ties(scr, 0)
+                if n_ties > 1:
+                    a_next = nth_tie(scr, 0, rng.integers(0, n_ties))
             else:
                 a_next, n_ties = greedy_ties(Q, j)
                 if n_ties > 1:

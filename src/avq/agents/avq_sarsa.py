@@ -51,6 +51,10 @@ class AVQSarsa(BaseAgent):
         alpha_decay: Beyond the paper: after ``k`` episodes the step size is
             ``max(alpha_min, alpha * alpha_decay ** k)`` (1, the default: constant).
         alpha_min: The floor of that schedule.
+        explore_bonus: Beyond the paper: count-based exploration. The greedy part of ε-greedy
+            (while learning) decides on ``Q[i, a] + explore_bonus / sqrt(1 + n[i, a])``, with
+            ``n[i, a]`` the decisions taken with ``a`` in cell ``i`` (summed when cells merge,
+            0 for a new cell); 0 (the paper): on ``Q`` alone. ``predict`` always uses ``Q``.
         collision_split: Beyond the paper: on a collision within ``d_min`` of the
             cell's own vector, where the paper sets ``Q[i, a] = chi`` for the whole
             cell, split instead when ``a`` is the cell's greedy action and ``x`` is not
@@ -143,6 +147,7 @@ class AVQSarsa(BaseAgent):
         epsilon_min: float = 0.0,
         alpha_decay: float = 1.0,
         alpha_min: float = 0.0,
+        explore_bonus: float = 0.0,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | None = None,
@@ -167,6 +172,7 @@ class AVQSarsa(BaseAgent):
         self.epsilon_min = check_range("epsilon_min", epsilon_min, 0.0, 1.0)
         self.alpha_decay = check_range("alpha_decay", alpha_decay, 0.0, 1.0, low_open=True)
         self.alpha_min = check_range("alpha_min", alpha_min, 0.0, 1.0)
+        self.explore_bonus = check_range("explore_bonus", explore_bonus, 0.0, np.inf, high_open=True)
         for name, start, decay, floor in (("alpha", self.alpha, self.alpha_decay, self.alpha_min),
                                           ("epsilon", self.epsilon, self.epsilon_decay, self.epsilon_min)):
             if decay < 1.0 and floor > start:
@@ -241,7 +247,8 @@ class AVQSarsa(BaseAgent):
         self._Q = np.zeros((cap, self.n_actions))
         self._E = np.zeros((cap, self.n_actions))
         # Per cell: the episode (1-based) that created it, and the last one with a decision in it.
-        self._born = np.zeros((cap, 2), dtype=np.int64)
+        # (and then the decisions taken there with each action).
+        self._born = np.zeros((cap, 2 + self.n_actions), dtype=np.int64)
         self._act = np.zeros(cap + 1, dtype=np.int64)
         self._pc = np.zeros((cap + 1, 2), dtype=np.int64)
         self._pc[0, 0] = -1
@@ -253,6 +260,7 @@ class AVQSarsa(BaseAgent):
         P[core.EPS] = core.epsilon_at(P, self.num_episodes)
         P[[core.ALPHA0, core.ALPHA_DECAY, core.ALPHA_MIN]] = self.alpha, self.alpha_decay, self.alpha_min
         P[core.ALPHA] = core.alpha_at(P, self.num_episodes)
+        P[core.BONUS] = self.explore_bonus
         P[core.ADAPT] = self.adapt_rate
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
@@ -296,10 +304,10 @@ class AVQSarsa(BaseAgent):
             self._refuse_non_finite(x, 0.0, 0)
         self._ensure_capacity(1)
         cell = core.begin_episode(*self._state(), x)
-        self._S[core.ACTION] = epsilon_greedy(self._Q[cell], float(self._P[core.EPS]), self._rng)
+        self._S[core.ACTION] = epsilon_greedy(self._decision_values(cell), float(self._P[core.EPS]), self._rng)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, rng, eps = self.env, self._rng, float(self._P[core.EPS])
+        env, rng, eps, bonus = self.env, self._rng, float(self._P[core.EPS]), self.explore_bonus
         S = self._S
         shape = self._V.shape[1:]
         a = int(S[core.ACTION])
@@ -324,11 +332,19 @@ class AVQSarsa(BaseAgent):
                     self._refuse_non_finite(x, r, int(S[core.EP_STEPS]) + 1)
                 continue
             if not terminated:
-                a = epsilon_greedy(state[1][j], eps, rng)
+                a = epsilon_greedy(state[1][j] if bonus == 0.0 else self._decision_values(j), eps, rng)
             core.learn(*state, x, j, a, terminated, done)
             if done:
                 return n, True
         return n, False
+
+    def _decision_values(self, cell: int) -> np.ndarray:
+        """The values ε-greedy decides on in ``cell``: ``Q``, plus the count-based bonus if any."""
+        if self.explore_bonus == 0.0:
+            return self._Q[cell]
+        out = np.empty((1, self.n_actions))
+        core.bonus_values(self._Q, self._born, self._P, cell, out)
+        return out[0]
 
     def _end_episode(self) -> EpisodeRecord:
         core.end_episode(*self._state(), self._rec)
@@ -423,7 +439,7 @@ class AVQSarsa(BaseAgent):
     # -- saving ---------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
-        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())  # (p, 2)
+        arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())  # (p, 2 + m)
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -437,8 +453,10 @@ class AVQSarsa(BaseAgent):
         born = arrays.get("born", np.zeros(len(q), dtype=np.int64))
         if born.shape == (len(q),):  # files from before the last-decision column: count every cell as just seen
             born = np.stack([born, np.full(len(q), self.num_episodes)], axis=1)
-        if born.shape != (len(q), 2):
-            raise ValueError(f"array born has shape {born.shape}; expected ({len(q)}, 2)")
+        if born.shape == (len(q), 2):  # files from before the decision counts: none counted
+            born = np.concatenate([born, np.zeros((len(q), self.n_actions), dtype=np.int64)], axis=1)
+        if born.shape != (len(q), 2 + self.n_actions):
+            raise ValueError(f"array born has shape {born.shape}; expected ({len(q)}, {2 + self.n_actions})")
         p = len(q)
         self._ensure_capacity(p)
         self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born
