@@ -36,6 +36,7 @@ ROWS: dict[str, tuple[str, dict]] = {
     "merge guard: same action": ("avq", {"merge_same_action": True}),
     "no merging": ("avq", {"merge_every": 0}),
     "no cell cap": ("avq", {"max_cells": 10_000}),
+    "make room at the cap": ("avq", {"make_room": True}),
     "epsilon 0.2 decaying by 0.995 to 0.01": ("avq", {"epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01}),
     "alpha 0.5 decaying by 0.998 to 0.05": ("avq", {"alpha_decay": 0.998, "alpha_min": 0.05}),
     "vectors adapt: rate 0.01": ("avq", {"adapt_rate": 0.01}),

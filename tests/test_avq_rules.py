@@ -539,3 +539,35 @@ def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
     assert any(acts[k] == acts[k + 1] for k in range(0, 40, 2))
     with pytest.raises(ValueError, match="explore_bonus"):
         agent_for([ep], explore_bonus=-1.0)
+
+
+@pytest.mark.parametrize("make_room, refused", [(False, 2), (True, 0), (True, 1), (True, 2)])
+def test_make_room_merges_as_many_more_same_action_pairs_as_growth_was_refused(make_room, refused):
+    from avq.agents import _avq_core as core
+
+    # Three nearest pairs, far apart: (0, 1), (2, 3), (4, 5), none similar enough for rho = 1.
+    # Same greedy action in (0, 1) (difference 9) and (2, 3) (difference 4); not in (4, 5).
+    V = np.array([[0, 0], [1, 0], [10, 0], [11, 0], [20, 0], [21, 0], [0, 0], [0, 0]], float)
+    Q = np.array([[5, 0], [2, 0], [7, 1], [5, 1], [1, 0], [0, 1], [0, 0], [0, 0]], float)
+    cap, m = 8, 2
+    E = np.zeros((cap, m))
+    born = np.zeros((cap, 2 + m), np.int64)
+    act = np.zeros(cap + 1, np.int64)
+    pc = np.zeros((cap + 1, 2), np.int64)
+    pc[0, 0] = -1
+    P = np.zeros(core.N_P)
+    P[core.RHO] = 1.0
+    IP = np.zeros(core.N_IP, np.int64)
+    IP[core.MERGE_PAIRS] = 2  # "nearest"
+    IP[core.MAKE_ROOM] = make_room
+    S = np.zeros(core.N_S, np.int64)
+    S[core.SIZE] = 6
+    S[core.REFUSED] = refused
+    n = core.merge_pass(V, Q, E, born, act, pc, np.ones(2), P, IP, S)
+    expected = {(False, 2): 0, (True, 0): 0, (True, 1): 1, (True, 2): 2}[(make_room, refused)]
+    assert n == expected and S[core.SIZE] == 6 - n
+    if n == 1:  # the most similar same-action pair, (2, 3), merged into slot 2
+        assert V[:5].tolist() == [[0, 0], [1, 0], [10.5, 0], [20, 0], [21, 0]]
+        assert Q[2].tolist() == [6, 1]
+    if n == 2:  # then (0, 1); (4, 5) never: their greedy actions differ
+        assert V[:4].tolist() == [[0.5, 0], [10.5, 0], [20, 0], [21, 0]]

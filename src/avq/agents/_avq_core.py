@@ -45,8 +45,8 @@ ALPHA0, ALPHA_DECAY, ALPHA_MIN, BONUS = range(14, 18)
 N_P = 18
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
-PRUNE_AFTER = 8
-N_IP = 9
+PRUNE_AFTER, MAKE_ROOM = 8, 9
+N_IP = 10
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM, PREV_CELL, PREV_GREEDY = range(12)
 N_S = 12
@@ -339,6 +339,24 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             continue
         keep[k] = True
         n_keep += 1
+    if IP[MAKE_ROOM] and S[REFUSED] > 0:
+        # Beyond the paper: the budget refused growth this episode; make room by merging as many more
+        # pairs, those with the same greedy action and the most similar profiles first.
+        extra = min(S[REFUSED], pairs.shape[0] - n_keep)
+        for _ in range(extra):
+            best = -1
+            best_d = np.inf
+            for k in range(pairs.shape[0]):
+                i, j = pairs[k, 0], pairs[k, 1]
+                if keep[k] or np.argmax(Q[i]) != np.argmax(Q[j]):
+                    continue
+                d = mean_square_difference(Q[i], Q[j])
+                if d < best_d:
+                    best, best_d = k, d
+            if best < 0:
+                break
+            keep[best] = True
+            n_keep += 1
     if n_keep == 0:
         return 0
     chosen = np.empty((n_keep, 2), dtype=np.int64)

@@ -73,6 +73,10 @@ class AVQSarsa(BaseAgent):
         prune_after: Beyond the paper: after every episode, remove the cells in which the agent has
             taken no decision for this many episodes (and that are at least that old); 0 never
             prunes. Removals are not counted in the episode record (``n_cells`` shows them).
+        make_room: Beyond the paper: when ``max_cells`` refused growth during an episode, the merge
+            pass after it merges as many more of its candidate pairs, those with the same greedy
+            action and the most similar profiles first (whatever ``rho``), so that the budget goes
+            where growth is asked for.
         merge_pairs: Which pairs the merge pass considers. ``"mutual"`` (the paper,
             SPEC §4): each the other's unique nearest vector (Fig. 2's strict ``<``).
             ``"mutual_ties"``: a tie for the nearest goes to the lowest index instead of
@@ -143,6 +147,7 @@ class AVQSarsa(BaseAgent):
         cycle_split: bool = False,
         adapt_rate: float = 0.0,
         prune_after: int = 0,
+        make_room: bool = False,
         epsilon_decay: float = 1.0,
         epsilon_min: float = 0.0,
         alpha_decay: float = 1.0,
@@ -186,6 +191,9 @@ class AVQSarsa(BaseAgent):
         self.cycle_split = bool(cycle_split)
         self.adapt_rate = check_range("adapt_rate", adapt_rate, 0.0, 1.0, high_open=True)
         self.prune_after = check_int("prune_after", prune_after, 0)
+        if not isinstance(make_room, (bool, np.bool_)):
+            raise ValueError(f"make_room must be True or False, not {make_room!r}")
+        self.make_room = bool(make_room)
         self.value_trigger = (
             None if value_trigger is None
             else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
@@ -266,9 +274,10 @@ class AVQSarsa(BaseAgent):
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         IP = np.zeros(core.N_IP, dtype=np.int64)
         IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-            core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER]] = (
+            core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER, core.MAKE_ROOM]] = (
             self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
-            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split, self.prune_after)
+            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split, self.prune_after,
+            self.make_room)
         self._P, self._IP = P, IP
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
