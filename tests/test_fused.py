@@ -32,7 +32,8 @@ def same(a, b):
     assert a.num_timesteps == b.num_timesteps and a.num_episodes == b.num_episodes
 
 
-@pytest.mark.parametrize("name, overrides", VARIANTS + [("avq", {"explore_bonus": 2.0, "prune_after": 20, "make_room": True})],
+@pytest.mark.parametrize("name, overrides",
+                         VARIANTS + [("avq", {"explore_bonus": 2.0, "prune_after": 20, "make_room": True})],
                          ids=["avq-paper", "avq", "avq-general", "avq-bonus-prune"])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_fused_and_generic_paths_are_identical(name, overrides, seed):
