@@ -1,8 +1,8 @@
 """Soak run: does the ``avq`` agent stay bounded over millions of steps on RobotMaze?
 
 Trains ``avq.AVQSarsa(gymnasium.make("avq/RobotMaze-v0"), seed=SEED, **avq.AGENTS["avq"][1])``
-(the general agent, with the value-change trigger, rather than the maze rules ``avq`` takes there) by calling ``agent.learn(total_timesteps=EVERY)``
-again and again (``learn`` continues where it stopped) and, after every call, records:
+(the general agent, with the value-change trigger, rather than the maze rules ``avq`` takes there)
+by calling ``agent.learn(total_timesteps=EVERY)`` again and again (``learn`` continues where it stopped) and, after every call, records:
 
 - primitive steps and finished episodes so far, wall seconds, steps per second of the chunk;
 - the process's resident memory in MB: current (``/proc/self/statm``), peak (``VmHWM``) and
