@@ -76,6 +76,15 @@ def test_truncated_and_corrupted_files_name_the_file(saved, name, tmp_path):
         bad.write_bytes(data[:cut])
         with pytest.raises(ValueError, match=f"cut{cut}.zip"):
             avq.load(bad, env=_env(name))
+    for bit, what in ((0x01, "encrypted"), (0x20, "patched")):  # general-purpose flags zipfile cannot read
+        flagged = bytearray(data)
+        for start in range(len(data) - 4):  # the flags of every central directory entry (what zipfile reads)
+            if data[start:start + 4] == b"PK\x01\x02":
+                flagged[start + 8] |= bit
+        bad = tmp_path / f"{what}.zip"
+        bad.write_bytes(bytes(flagged))
+        with pytest.raises(ValueError, match=f"{what}.zip"):
+            avq.load(bad, env=_env(name))
     rng = np.random.default_rng(0)
     original = _learned(avq.load(path, env=_env(name)))
     detected = 0

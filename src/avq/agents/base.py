@@ -494,7 +494,7 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no such model file") from None
     except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError, OSError, EOFError,
-            zlib.error) as exc:
+            zlib.error, NotImplementedError, RuntimeError) as exc:  # (the last two: unsupported or encrypted)
         raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
         raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
@@ -506,7 +506,7 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError, zlib.error) as exc:
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError, zlib.error, NotImplementedError, RuntimeError) as exc:
         raise ValueError(f"{path}: the model's arrays are unreadable ({exc})") from None
     for name, arr in arrays.items():
         if arr.dtype.kind not in "biuf":
