@@ -15,7 +15,6 @@ import math
 import os
 import time
 import zipfile
-import zlib
 from pathlib import Path
 from typing import Any, Callable, ClassVar
 
@@ -493,8 +492,8 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
             raw = zf.read("arrays.npz")
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no such model file") from None
-    except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError, OSError, EOFError,
-            zlib.error, NotImplementedError, RuntimeError) as exc:  # (the last two: unsupported or encrypted)
+    except Exception as exc:  # noqa: BLE001  (a damaged file can fail anywhere in zipfile: BadZipFile, zlib.error,
+        # NotImplementedError for flags it cannot read, RuntimeError for encryption, struct or JSON errors...)
         raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
         raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
@@ -506,7 +505,7 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError, zlib.error, NotImplementedError, RuntimeError) as exc:
+    except Exception as exc:  # noqa: BLE001  (as above: any failure to parse is an unreadable file)
         raise ValueError(f"{path}: the model's arrays are unreadable ({exc})") from None
     for name, arr in arrays.items():
         if arr.dtype.kind not in "biuf":
