@@ -12,6 +12,8 @@ ratio <= 1.15 and at most 30 cells.
 
     python scripts/ablation_avq.py                      # about 3 minutes on 2 cores
     python scripts/ablation_avq.py --rows avq,avq-maze  # some rows only
+    python scripts/ablation_avq.py --holdout --rows "avq,no cycle split"
+        # more data: seeds 100-159 and 200-259, mazes 100-139 and 200-239
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from avq.experiments import train_maze_run
 #: row label -> (registered agent, overrides). "avq" on the grid maze has the maze defaults.
 ROWS: dict[str, tuple[str, dict]] = {
     "avq": ("avq", {}),
-    "no cycle split (avq-maze)": ("avq", {"cycle_split": False}),
+    "no cycle split": ("avq", {"cycle_split": False}),
     "no collision split": ("avq", {"collision_split": False}),
     "neither split": ("avq", {"cycle_split": False, "collision_split": False}),
     "merge pairs: mutual (the paper)": ("avq", {"merge_pairs": "mutual"}),
@@ -37,23 +39,29 @@ ROWS: dict[str, tuple[str, dict]] = {
     "no merging": ("avq", {"merge_every": 0}),
     "no cell cap": ("avq", {"max_cells": 10_000}),
     "make room at the cap": ("avq", {"make_room": True}),
-    "epsilon 0.2 decaying by 0.995 to 0.01": ("avq", {"epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01}),
+    "constant epsilon 0.05 (no schedule)": ("avq", {"epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
+    "constant epsilon 0.05 and no cycle split (avq-maze)": ("avq", {"epsilon": 0.05, "epsilon_decay": 1.0,
+                                                                    "epsilon_min": 0.0, "cycle_split": False}),
     "alpha 0.5 decaying by 0.998 to 0.05": ("avq", {"alpha_decay": 0.998, "alpha_min": 0.05}),
     "vectors adapt: rate 0.01": ("avq", {"adapt_rate": 0.01}),
     "vectors adapt: rate 0.05": ("avq", {"adapt_rate": 0.05}),
     "pruning: after 10 episodes": ("avq", {"prune_after": 10}),
     "pruning: after 50 episodes": ("avq", {"prune_after": 50}),
+    "count-based bonus 0.5": ("avq", {"explore_bonus": 0.5}),
     "count-based bonus 1": ("avq", {"explore_bonus": 1.0}),
     "count-based bonus 5": ("avq", {"explore_bonus": 5.0}),
     "count-based bonus 5 with q_init 0": ("avq", {"explore_bonus": 5.0, "q_init": 0.0}),
     "no optimism: q_init 0": ("avq", {"q_init": 0.0}),
     "more optimism: q_init 20": ("avq", {"q_init": 20.0}),
-    "optimism only: epsilon 0": ("avq", {"epsilon": 0.0}),
+    "optimism only: epsilon 0": ("avq", {"epsilon": 0.0, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
     "avq-paper": ("avq-paper", {}),
     "tabular": ("tabular", {}),
 }
 SEEDS = range(30)
 MAZES = range(20)
+#: Fresh data (--holdout): 120 more seeds of lau2002 and 80 more generated mazes.
+HOLDOUT_SEEDS = [*range(100, 160), *range(200, 260)]
+HOLDOUT_MAZES = [*range(100, 140), *range(200, 240)]
 
 
 def one(row: str, agent: str, overrides: dict, where: str, seed: int, maze: int | None) -> dict:
@@ -82,6 +90,8 @@ def main() -> None:
     ap.add_argument("--rows", default=",".join(ROWS), help="comma-separated row labels (default: all)")
     assert not any("," in row for row in ROWS)
     ap.add_argument("--jobs", type=int, default=-1)
+    ap.add_argument("--holdout", action="store_true",
+                    help="lau2002 seeds 100-159, 200-259 and generated mazes 100-139, 200-239 instead")
     ap.add_argument("--csv", default=None,
                     help="where to write every run (default: docs/data/ablation_avq.csv for all rows, none for some)")
     args = ap.parse_args()
@@ -89,10 +99,11 @@ def main() -> None:
     unknown = [r for r in rows if r not in ROWS]
     if unknown:
         ap.error(f"unknown row {unknown[0]!r}; rows: {', '.join(ROWS)}")
-    jobs = [(row, *ROWS[row], "lau2002", s, None) for row in rows for s in SEEDS]
-    jobs += [(row, *ROWS[row], "generated", 0, m) for row in rows for m in MAZES]
+    seeds, mazes = (HOLDOUT_SEEDS, HOLDOUT_MAZES) if args.holdout else (SEEDS, MAZES)
+    jobs = [(row, *ROWS[row], "lau2002", s, None) for row in rows for s in seeds]
+    jobs += [(row, *ROWS[row], "generated", 0, m) for row in rows for m in mazes]
     results = Parallel(n_jobs=args.jobs)(delayed(one)(*job) for job in jobs)
-    csv_path = args.csv or ("docs/data/ablation_avq.csv" if rows == list(ROWS) else None)
+    csv_path = args.csv or ("docs/data/ablation_avq.csv" if rows == list(ROWS) and not args.holdout else None)
     if csv_path:
         Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
@@ -101,9 +112,13 @@ def main() -> None:
             writer.writerows(results)
     head = ("| success, mean (worst) | ≥ 95% | cells, median [range] | path ratio, mean (worst) | env steps "
             "| all three |\n|---|---|---|---|---|---|---|")
-    for title, pick in (("lau2002, seeds 0-9", lambda r: r["where"] == "lau2002" and r["seed"] < 10),
-                        ("lau2002, seeds 0-29", lambda r: r["where"] == "lau2002"),
-                        ("20 generated mazes", lambda r: r["where"] == "generated")):
+    tables = (("lau2002, seeds 0-9", lambda r: r["where"] == "lau2002" and r["seed"] < 10),
+              ("lau2002, seeds 0-29", lambda r: r["where"] == "lau2002"),
+              ("20 generated mazes", lambda r: r["where"] == "generated"))
+    if args.holdout:
+        tables = (("lau2002, seeds 100-159 and 200-259", lambda r: r["where"] == "lau2002"),
+                  ("80 generated mazes, 100-139 and 200-239", lambda r: r["where"] == "generated"))
+    for title, pick in tables:
         print(f"\n{title}\n\n| configuration {head}")
         for row in rows:
             print(f"| {row} | {summarize([r for r in results if r['row'] == row and pick(r)])} |")

@@ -306,7 +306,8 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
 
     maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
     assert maze.get_params() == {**avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
-                                 "cycle_split": True, "seed": 0}
+                                 "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01,
+                                 "seed": 0}
     from avq.envs import GridMaze
 
     assert avq.make_agent("avq", GridMaze(), seed=0).get_params() == maze.get_params()  # built without gym.make
