@@ -13,7 +13,7 @@ ratio <= 1.15 and at most 30 cells.
     python scripts/ablation_avq.py                      # about 3 minutes on 2 cores
     python scripts/ablation_avq.py --rows avq,avq-maze  # some rows only
     python scripts/ablation_avq.py --holdout --rows "avq,no cycle split"
-        # more data: seeds 100-159 and 200-259, mazes 100-139 and 200-239
+        # more data: seeds 100-159 and 200-259, mazes 100-139 and 200-239 (--check: 300-399, 300-359)
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ ROWS: dict[str, tuple[str, dict]] = {
     "neither split": ("avq", {"cycle_split": False, "collision_split": False}),
     "merge pairs: mutual (the paper)": ("avq", {"merge_pairs": "mutual"}),
     "merge guard: same action": ("avq", {"merge_same_action": True}),
+    "merge guard: 2 episodes": ("avq", {"merge_age": 2}),
     "no merging": ("avq", {"merge_every": 0}),
     "no cell cap": ("avq", {"max_cells": 10_000}),
     "make room at the cap": ("avq", {"make_room": True}),
@@ -62,6 +63,8 @@ MAZES = range(20)
 #: Fresh data (--holdout): 120 more seeds of lau2002 and 80 more generated mazes.
 HOLDOUT_SEEDS = [*range(100, 160), *range(200, 260)]
 HOLDOUT_MAZES = [*range(100, 140), *range(200, 240)]
+#: A last check (--check): data used for nothing else, 100 seeds and 60 mazes.
+CHECK_SEEDS, CHECK_MAZES = range(300, 400), range(300, 360)
 
 
 def one(row: str, agent: str, overrides: dict, where: str, seed: int, maze: int | None) -> dict:
@@ -90,6 +93,7 @@ def main() -> None:
     ap.add_argument("--rows", default=",".join(ROWS), help="comma-separated row labels (default: all)")
     assert not any("," in row for row in ROWS)
     ap.add_argument("--jobs", type=int, default=-1)
+    ap.add_argument("--check", action="store_true", help="lau2002 seeds 300-399 and mazes 300-359 instead")
     ap.add_argument("--holdout", action="store_true",
                     help="lau2002 seeds 100-159, 200-259 and generated mazes 100-139, 200-239 instead")
     ap.add_argument("--csv", default=None,
@@ -99,11 +103,13 @@ def main() -> None:
     unknown = [r for r in rows if r not in ROWS]
     if unknown:
         ap.error(f"unknown row {unknown[0]!r}; rows: {', '.join(ROWS)}")
-    seeds, mazes = (HOLDOUT_SEEDS, HOLDOUT_MAZES) if args.holdout else (SEEDS, MAZES)
+    seeds, mazes = ((CHECK_SEEDS, CHECK_MAZES) if args.check else (HOLDOUT_SEEDS, HOLDOUT_MAZES) if args.holdout
+                    else (SEEDS, MAZES))
     jobs = [(row, *ROWS[row], "lau2002", s, None) for row in rows for s in seeds]
     jobs += [(row, *ROWS[row], "generated", 0, m) for row in rows for m in mazes]
     results = Parallel(n_jobs=args.jobs)(delayed(one)(*job) for job in jobs)
-    csv_path = args.csv or ("docs/data/ablation_avq.csv" if rows == list(ROWS) and not args.holdout else None)
+    csv_path = args.csv or ("docs/data/ablation_avq.csv" if rows == list(ROWS) and not (args.holdout or args.check)
+                            else None)
     if csv_path:
         Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
@@ -115,9 +121,9 @@ def main() -> None:
     tables = (("lau2002, seeds 0-9", lambda r: r["where"] == "lau2002" and r["seed"] < 10),
               ("lau2002, seeds 0-29", lambda r: r["where"] == "lau2002"),
               ("20 generated mazes", lambda r: r["where"] == "generated"))
-    if args.holdout:
-        tables = (("lau2002, seeds 100-159 and 200-259", lambda r: r["where"] == "lau2002"),
-                  ("80 generated mazes, 100-139 and 200-239", lambda r: r["where"] == "generated"))
+    if args.holdout or args.check:
+        tables = ((f"lau2002, {len(seeds)} seeds", lambda r: r["where"] == "lau2002"),
+                  (f"{len(mazes)} generated mazes", lambda r: r["where"] == "generated"))
     for title, pick in tables:
         print(f"\n{title}\n\n| configuration {head}")
         for row in rows:
