@@ -45,21 +45,25 @@ def steps_to_success(name: str, side: int, seed: int, budget: int, target: float
     limit = 4 * (2 * side)
     make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit)
     agent = avq.make_agent(name, make(), seed=seed, **AGENTS[name])
-    eval_env = make()
-    chunk = 10
+    reached, success, wall = learn_until(agent, make(), budget, target, 10, 200, max_steps=limit)
+    return {"agent": name, "side": side, "states": parse_layout(rows).n_states, "seed": seed,
+            "reached": reached, "env_steps": int(agent.num_timesteps), "cells": int(agent.n_cells),
+            "success": float(success), "wall_s": wall}
+
+
+def learn_until(agent, eval_env, budget: int, target: float, chunk: int, max_chunk: int,
+                max_steps: int | None = None) -> tuple[bool, float, float]:
+    """Learn in chunks of episodes (doubling up to ``max_chunk``) until the greedy policy succeeds from
+    ``target`` of the starts or ``budget`` env steps are spent: ``(reached, success, wall seconds)``."""
     t0 = time.perf_counter()
-    reached = False
     success = 0.0
     while agent.num_timesteps < budget:
         agent.learn(total_episodes=chunk)
-        success = avq.evaluate_maze(agent, eval_env, max_steps=limit)["success_rate"]
+        success = avq.evaluate_maze(agent, eval_env, max_steps=max_steps)["success_rate"]
         if success >= target:
-            reached = True
-            break
-        chunk = min(2 * chunk, 200)
-    return {"agent": name, "side": side, "states": parse_layout(rows).n_states, "seed": seed,
-            "reached": reached, "env_steps": int(agent.num_timesteps), "cells": int(agent.n_cells),
-            "success": float(success), "wall_s": round(time.perf_counter() - t0, 2)}
+            return True, success, round(time.perf_counter() - t0, 2)
+        chunk = min(2 * chunk, max_chunk)
+    return False, success, round(time.perf_counter() - t0, 2)
 
 
 ROBOT_AGENTS = ("avq", "grid", "tiles")
@@ -70,21 +74,10 @@ def robot_steps_to_success(name: str, move: float, seed: int, budget: int, targe
     base = make().unwrapped
     overrides = {"bins": [round(base.layout.width / move), round(base.layout.height / move)]} if name == "grid" else {}
     agent = avq.make_agent(name, make(), seed=seed, **overrides)
-    eval_env = make()
-    chunk = 20
-    t0 = time.perf_counter()
-    reached = False
-    success = 0.0
-    while agent.num_timesteps < budget:
-        agent.learn(total_episodes=chunk)
-        success = avq.evaluate_maze(agent, eval_env)["success_rate"]
-        if success >= target:
-            reached = True
-            break
-        chunk = min(2 * chunk, 400)
+    reached, success, wall = learn_until(agent, make(), budget, target, 20, 400)
     return {"agent": name, "move": move, "positions": round(98 / move**2), "seed": seed, "reached": reached,
             "env_steps": int(agent.num_timesteps), "cells": int(agent.n_cells), "success": float(success),
-            "wall_s": round(time.perf_counter() - t0, 2)}
+            "wall_s": wall}
 
 
 def robot_main(csv_path: str, seeds: int, budget: int) -> None:

@@ -251,11 +251,12 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
     i = S[CELL]
     a = S[ACTION]
     born[i, 2 + a] += 1  # one more decision (i, a)
-    greedy = True  # was the decision (i, a) greedy? (a best action of Q[i], ties included)
-    for b in range(Q.shape[1]):
-        if Q[i, b] > Q[i, a]:
-            greedy = False
-            break
+    greedy = True  # was the decision (i, a) greedy? (a best action of Q[i], ties included; cycle split only)
+    if IP[CYCLE_SPLIT]:
+        for b in range(Q.shape[1]):
+            if Q[i, b] > Q[i, a]:
+                greedy = False
+                break
     if terminated:
         delta = F[RET] - Q[i, a]
     else:
@@ -306,6 +307,17 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
     if not done:
         S[DECISIONS] += 1
     return j
+
+
+@njit(cache=True, inline="always")
+def _shrunk(Q, E, act, S, size: int, new_size: int) -> None:
+    """After cells were removed (merged or pruned): clear the freed rows and every trace, and count
+    the new geometry."""
+    Q[new_size:size, :] = 0.0
+    E[:size, :] = 0.0
+    act[0] = 0
+    S[SIZE] = new_size
+    S[GEOM] += 1
 
 
 @njit(cache=True)
@@ -377,12 +389,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     mapping = merge_kernel(V, size, chosen)
     compact_rows(Q, mapping)
     compact_rows(born, mapping)
-    new_size = size - n_keep
-    Q[new_size:size, :] = 0.0
-    E[:size, :] = 0.0
-    act[0] = 0
-    S[SIZE] = new_size
-    S[GEOM] += 1
+    _shrunk(Q, E, act, S, size, size - n_keep)
     return n_keep
 
 
@@ -417,11 +424,7 @@ def prune_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             for b in range(born.shape[1]):
                 born[w, b] = born[r, b]
         w += 1
-    Q[w:size, :] = 0.0
-    E[:size, :] = 0.0
-    act[0] = 0
-    S[SIZE] = w
-    S[GEOM] += 1
+    _shrunk(Q, E, act, S, size, w)
     return n_stale
 
 
