@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from avq import AVQSarsa
-from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.rules import APPEND, CHI, KEEP, collision_rule, merged_values, similar_pairs
+from avq._random import RawStream
+from avq.agents import _avq_core as core
+from avq.agents._td import decide, sarsa_lambda, sarsa_td_error, trace_update
+from avq.rules import APPEND, CHI, KEEP, collision_rule, merge_profiles, similar_profiles
 
 from conftest import ScriptedEnv
 
@@ -161,30 +163,53 @@ def test_merge_runs_every_merge_every_episodes():
     assert agent.history_[1]["merges"] == 1
 
 
+def merge_pass_on(vectors, q, rho, pairs="mutual"):
+    """Run the training's merge pass (``_avq_core.merge_pass``) on cells set up by hand; return the
+    codebook, the values and the number of merges."""
+    p, m = q.shape
+    cap = p + 2
+    V, Q, E = np.zeros((cap, 2)), np.zeros((cap, m)), np.zeros((cap, m))
+    V[:p], Q[:p] = vectors, q
+    born = np.zeros((cap, 2 + m), dtype=np.int64)
+    act, pc = np.zeros(cap + 1, dtype=np.int64), np.zeros((cap + 1, 2), dtype=np.int64)
+    pc[0, 0] = -1
+    P, IP, S = np.zeros(core.N_P), np.zeros(core.N_IP, dtype=np.int64), np.zeros(core.N_S, dtype=np.int64)
+    P[core.RHO] = rho
+    IP[core.MERGE_PAIRS] = ("mutual", "mutual_ties", "nearest").index(pairs)
+    S[core.SIZE], S[core.EPISODES] = p, 5
+    n = core.merge_pass(V, Q, E, born, act, pc, np.ones(2), P, IP, S)
+    return V[: p - n], Q[: p - n], n
+
+
 def test_no_merge_when_not_mutual():
     # Vectors 0 (0,0), 1 (2,0), 2 (3,0): 0's nearest is 1 but 1's is 2. Identical profiles:
-    # only (1, 2) merges.
-    q = np.zeros((3, 2))
-    assert similar_pairs(np.array([[1, 2]]), q, 0.1).tolist() == [[1, 2]]
-    from avq.quantizer import Codebook
-    cb = Codebook(2)
-    for p in [(0, 0), (2, 0), (3, 0)]:
-        cb.append(np.array(p, float))
-    assert similar_pairs(cb.mutual_nearest_pairs(), q, 0.1).tolist() == [[1, 2]]
+    # only (1, 2) merges, into their midpoint (2.5, 0) at index 1.
+    V, Q, n = merge_pass_on(np.array([[0.0, 0.0], [2.0, 0.0], [3.0, 0.0]]), np.zeros((3, 2)), 0.1)
+    assert n == 1 and V.tolist() == [[0.0, 0.0], [2.5, 0.0]]
 
 
-def test_similar_pairs_uses_the_mean_square_difference():
+def test_similar_profiles_uses_the_mean_square_difference():
     q = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 6.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.3]])
-    pairs = np.array([[0, 1], [2, 3]])
     # msd(0, 1) = 9 / 3 = 3; msd(2, 3) = 0.09 / 3 = 0.03
-    assert similar_pairs(pairs, q, 3.0).tolist() == [[2, 3]]
-    assert similar_pairs(pairs, q, 3.01).tolist() == [[0, 1], [2, 3]]
+    assert not similar_profiles(q[0], q[1], 3.0) and similar_profiles(q[0], q[1], 3.01)
+    assert similar_profiles(q[2], q[3], 0.031) and not similar_profiles(q[2], q[3], 0.03)
+    # The same numbers decide the training's merge pass: two far-apart mutual pairs, rho 3 then 3.01.
+    vectors = np.array([[0.0, 0.0], [1.0, 0.0], [10.0, 0.0], [11.0, 0.0]])
+    V, Q, n = merge_pass_on(vectors, q, 3.0)
+    assert n == 1 and Q.tolist() == [[1.0, 2.0, 3.0], [1.0, 2.0, 6.0], [0.0, 0.0, 0.15]]
+    V, Q, n = merge_pass_on(vectors, q, 3.01)
+    assert n == 2 and Q.tolist() == [[1.0, 2.0, 4.5], [0.0, 0.0, 0.15]]
+    assert V.tolist() == [[0.5, 0.0], [10.5, 0.0]]
 
 
-def test_merged_values_average_the_pair_and_keep_the_rest():
+def test_merged_profile_averages_the_pair_and_keeps_the_rest():
+    out = np.zeros(2)
+    merge_profiles(np.array([1.0, 2.0]), np.array([3.0, 6.0]), out)
+    assert out.tolist() == [2.0, 4.0]
+    # In the merge pass: cells 0 and 2 are mutually nearest (cell 1 is far), so they merge at index 0.
     q = np.array([[1.0, 2.0], [9.0, 9.0], [3.0, 6.0]])
-    out = merged_values(q, np.array([0, 1, 0]), 2)
-    assert out.tolist() == [[2.0, 4.0], [9.0, 9.0]]
+    V, Q, n = merge_pass_on(np.array([[0.0, 0.0], [20.0, 0.0], [1.0, 0.0]]), q, 100.0)
+    assert n == 1 and Q.tolist() == [[2.0, 4.0], [9.0, 9.0]] and V.tolist() == [[0.5, 0.0], [20.0, 0.0]]
 
 
 # -- SPEC §2, §5: acting and learning ---------------------------------------------------------
@@ -237,14 +262,23 @@ def test_traces_are_cleared_at_every_episode_start():
 
 
 def test_sarsa_lambda_update_replacing_and_accumulating():
-    q = np.zeros((2, 2))
-    e = np.array([[0.5, 0.0], [0.0, 0.2]])
-    sarsa_lambda_update(q, e, 0, 0, delta=2.0, alpha=0.5, trace_decay=0.5, replacing=True, n_rows=2)
-    assert q.tolist() == [[1.0, 0.0], [0.0, 0.2]] and e.tolist() == [[0.5, 0.0], [0.0, 0.1]]
-    q = np.zeros((2, 2))
-    e = np.array([[0.5, 0.0], [0.0, 0.2]])
-    sarsa_lambda_update(q, e, 0, 0, delta=2.0, alpha=0.5, trace_decay=0.5, replacing=False, n_rows=2)
-    assert q.tolist() == [[1.5, 0.0], [0.0, 0.2]] and e.tolist() == [[0.75, 0.0], [0.0, 0.1]]
+    for replacing, q_00, e_00 in ((True, 1.0, 0.5), (False, 1.5, 0.75)):
+        q = np.zeros((2, 2))
+        e = np.array([[0.5, 0.0], [0.0, 0.2]])
+        trace_update(q, e, np.array([0, 1]), 2, 0, 0, 2.0, 0.5, 0.5, replacing)
+        assert q.tolist() == [[q_00, 0.0], [0.0, 0.2]] and e.tolist() == [[e_00, 0.0], [0.0, 0.1]]
+
+
+def test_sarsa_lambda_touches_the_active_rows_and_adds_the_updated_one():
+    # Active list: row 1 only (act[0] = 1). Updating (0, 0) adds row 0; row 2 (a stale trace not in the
+    # list, which training never leaves behind) is not touched.
+    q = np.zeros((3, 2))
+    e = np.array([[0.0, 0.0], [0.0, 0.2], [1.0, 1.0]])
+    act = np.array([1, 1, 0, 0])
+    sarsa_lambda(q, e, act, 0, 0, 2.0, 0.5, 0.5, True)
+    assert act[:3].tolist() == [2, 1, 0]
+    assert q.tolist() == [[1.0, 0.0], [0.0, 0.2], [0.0, 0.0]]
+    assert e.tolist() == [[0.5, 0.0], [0.0, 0.1], [1.0, 1.0]]
 
 
 def test_td_error():
@@ -253,13 +287,31 @@ def test_td_error():
 
 
 def test_epsilon_greedy_breaks_ties_at_random_and_explores():
-    rng = np.random.default_rng(0)
-    q = np.array([1.0, 3.0, 3.0, 0.0])
-    picks = [epsilon_greedy(q, 0.0, rng) for _ in range(400)]
+    draws = RawStream(np.random.default_rng(0))
+
+    def pick(q, eps):
+        draws.reserve()
+        return int(decide(draws.src, np.asarray(q)[None, :], 0, eps))
+
+    q = [1.0, 3.0, 3.0, 0.0]
+    picks = [pick(q, 0.0) for _ in range(400)]
     assert set(picks) == {1, 2} and 150 < picks.count(1) < 250
-    picks = [epsilon_greedy(q, 1.0, rng) for _ in range(400)]
+    picks = [pick(q, 1.0) for _ in range(400)]
     assert set(picks) == {0, 1, 2, 3}
-    assert all(epsilon_greedy(np.array([0.0, 1.0]), 0.0, rng) == 1 for _ in range(20))
+    assert all(pick([0.0, 1.0], 0.0) == 1 for _ in range(20))
+
+
+def test_epsilon_greedy_draws_what_the_generator_would():
+    # u < epsilon: a random action is integers(0, m); else the greedy one, ties by integers(0, ties).
+    draws, ref = RawStream(np.random.default_rng(5)), np.random.default_rng(5)
+    q = np.array([[1.0, 3.0, 3.0, 0.0]])
+    for _ in range(300):
+        draws.reserve()
+        got = int(decide(draws.src, q, 0, 0.3))
+        want = int(ref.integers(0, 4)) if ref.random() < 0.3 else (1, 2)[int(ref.integers(0, 2))]
+        assert got == want
+    draws.sync()
+    assert draws.rng.bit_generator.state == ref.bit_generator.state
 
 
 def test_a_decision_is_repeated_until_the_cell_changes():

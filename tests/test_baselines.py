@@ -328,3 +328,28 @@ def test_tile_sarsa_solves_mountain_car_like_the_book(seed):
     steps = agent.episode_history()["steps"]
     assert 150 <= steps.mean() <= 350
     assert steps[-10:].mean() < steps[:10].mean()
+
+
+@pytest.mark.parametrize("make", [
+    lambda env: avq.TabularSarsa(env, alpha=0.5, epsilon=0.0, seed=0),
+    lambda env: avq.GridSarsa(env, bins=20, alpha=0.5, epsilon=0.0, seed=0),
+], ids=["tabular", "grid"])
+def test_table_agents_make_a_row_for_the_terminal_observation_and_never_learn_from_it(make):
+    # Start (0, 0), one step to (1, 0) with r -1, then the terminal step to (9, 0) with r +10.
+    # Both agents run the same step (avq.agents._td.table_step): every observation reached gets a row,
+    # the terminal one included, so n_cells = 3; the terminal row keeps q_init = 0 (nothing bootstraps
+    # from it). alpha 0.5, lambda 0.7, gamma 1, replacing traces, epsilon 0 (ties go to a random action):
+    #   step 1: delta = -1 + 0 - 0 = -1 -> Q[s0, a0] = -0.5, E[s0, a0] = 0.7
+    #   step 2: delta = 10 - 0 = 10 -> Q[s1, a1] = 5, Q[s0, a0] = -0.5 + 0.5 * 10 * 0.7 = 3.0
+    from conftest import ScriptedEnv
+
+    env = ScriptedEnv([((0.0, 0.0), [((1.0, 0.0), -1, False, False, False), ((9.0, 0.0), 10, True, False, False)])])
+    agent = make(env)
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 3 and agent.history_[0]["appends"] == 3
+    a0, a1 = env.actions[0]
+    cells = np.arange(3) if isinstance(agent, avq.TabularSarsa) else agent.cells(
+        np.array([[0.0, 0.0], [1.0, 0.0], [9.0, 0.0]]))
+    q = agent.q_[cells]
+    assert q[0, a0] == pytest.approx(3.0) and q[1, a1] == 5.0
+    assert q[2].tolist() == [0.0, 0.0]

@@ -25,7 +25,7 @@ from avq import AVQSarsa
 from avq._kernels import compact_rows, merge_kernel, mutual_nearest_pairs_kernel
 from avq.agents import _avq_core as core
 from avq.quantizer import _TREE_THRESHOLD, Codebook
-from avq.rules import mean_square_difference, merged_values
+from avq.rules import mean_square_difference, merge_profiles
 
 from conftest import ScriptedEnv
 
@@ -194,7 +194,9 @@ class CodebookMachine(RuleBasedStateMachine):
         mapping = self.cb.merge(pairs)
         n_new = len(old_y) - len(pairs)
         assert self.cb.size == n_new
-        q_new = merged_values(old_q, mapping, n_new)
+        q_new = np.zeros((n_new, old_q.shape[1]))
+        np.add.at(q_new, mapping, old_q)  # each new row: the mean of the old rows mapped to it
+        q_new /= np.bincount(mapping, minlength=n_new)[:, None]
         check_merge_result(old_y, old_q, [tuple(sorted(p)) for p in pairs], mapping, self.cb.vectors, q_new)
         self.model_y = [tuple(v) for v in self.cb.vectors.tolist()]
         self.model_q = q_new.tolist()
@@ -293,14 +295,12 @@ def test_merge_kernel_and_compact_rows_keep_data_and_remap_consistently(yq, data
     V = np.vstack([y, np.full((extra, 2), 7.0)])
     Q = np.vstack([q, np.full((extra, q.shape[1]), 7.0)])
     arr = np.array(pairs, np.int64).reshape(-1, 2)
-    for i, j in pairs:  # the values rule, as the agent applies it before compacting (SPEC §4)
-        Q[i] = (Q[i] + Q[j]) / 2.0
+    for i, j in pairs:  # the values rule, as the merge pass applies it before compacting (SPEC §4)
+        merge_profiles(Q[i], Q[j], Q[i])
     mapping = merge_kernel(V, p, arr)
     n_new = compact_rows(Q, mapping)
     assert n_new == p - k
     check_merge_result(y, q, pairs, mapping, V[:n_new], Q[:n_new])
-    # The reference implementation of the values rule agrees.
-    assert merged_values(q, mapping, n_new).tolist() == Q[:n_new].tolist()
 
 
 @FAST

@@ -10,7 +10,7 @@ from numba import njit
 
 from avq.agents.base import BaseAgent
 from avq.envs.grid_maze import GridMaze, grid_move
-from avq.envs.robot_maze import RobotMaze, robot_move, sonar_ranges
+from avq.envs.robot_maze import RobotDynamics, RobotMaze, robot_move, sonar_ranges
 
 __all__ = ["evaluate_maze", "evaluate_policy", "success_rule", "SUCCESS_RULES"]
 
@@ -53,7 +53,7 @@ def _robot_moves(grid, xs, ys, actions, move, radius, gx, gy, terminated):
         xs[k], ys[k], _, terminated[k], _ = robot_move(grid, xs[k], ys[k], actions[k], move, radius, gx, gy)
 
 
-def _robot_walks(agent: BaseAgent, base: RobotMaze, starts: list[tuple[float, float]], limit: int):
+def _robot_walks(agent: BaseAgent, dyn: RobotDynamics, starts: list[tuple[float, float]], limit: int):
     """All greedy walks of a noise-free RobotMaze in lockstep: one batched ``predict`` per step."""
     xs = np.array([p[0] for p in starts], dtype=np.float64)
     ys = np.array([p[1] for p in starts], dtype=np.float64)
@@ -61,17 +61,18 @@ def _robot_walks(agent: BaseAgent, base: RobotMaze, starts: list[tuple[float, fl
     success = np.zeros(k, dtype=bool)
     steps = np.zeros(k, dtype=np.int64)
     alive = np.arange(k)
-    n_obs = 2 + (base._dirs.shape[0] if base.observe_sonar else 0)
+    dirs = dyn.sonar_directions
+    n_obs = 2 + (dirs.shape[0] if dyn.observe_sonar else 0)
+    gx, gy = dyn.goal
     for _ in range(limit):
         if len(alive) == 0:
             break
         obs = np.empty((len(alive), n_obs), dtype=np.float32)
         ax, ay = xs[alive], ys[alive]
-        _robot_observations(base._grid, ax, ay, base.radius, base._dirs, base.sonar_range, base.observe_sonar, obs)
+        _robot_observations(dyn.grid, ax, ay, dyn.radius, dirs, dyn.sonar_range, dyn.observe_sonar, obs)
         actions, _ = agent.predict(obs.astype(np.float64), deterministic=True)
         terminated = np.zeros(len(alive), dtype=np.bool_)
-        _robot_moves(base._grid, ax, ay, np.asarray(actions, dtype=np.int64), base.move, base.radius,
-                     base._gx, base._gy, terminated)
+        _robot_moves(dyn.grid, ax, ay, np.asarray(actions, dtype=np.int64), dyn.move, dyn.radius, gx, gy, terminated)
         xs[alive], ys[alive] = ax, ay
         steps[alive] += 1
         success[alive[terminated]] = True
@@ -132,13 +133,13 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         policy = np.zeros(layout.walls.shape, dtype=np.int64)
         policy[free[:, 1], free[:, 0]] = np.asarray(actions, dtype=np.int64)
         walks = np.array(starts, dtype=np.int64).reshape(-1, 2)
-        success, steps = _greedy_walks(np.ascontiguousarray(layout.walls), layout.goal[0], layout.goal[1],
-                                       policy, walks, limit)
+        dyn = base.dynamics
+        success, steps = _greedy_walks(dyn.walls, dyn.goal[0], dyn.goal[1], policy, walks, limit)
         outcomes = [{"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
                     for start, ok, n, best in zip(starts, success, steps, shortest)]
-    elif type(base) is RobotMaze and base.sonar_noise == 0.0:
+    elif type(base) is RobotMaze and base.dynamics.sonar_noise == 0.0:
         # The same walks as stepping the environment, all at once, with the maze's own compiled move.
-        success, steps = _robot_walks(agent, base, starts, limit)
+        success, steps = _robot_walks(agent, base.dynamics, starts, limit)
         outcomes = [{"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
                     for start, ok, n, best in zip(starts, success, steps, shortest)]
     for start, best in ([] if outcomes else zip(starts, shortest)):

@@ -1,7 +1,8 @@
 """The paper's codebook rules as named functions (SPEC §3 and §4).
 
-Each function decides; it changes nothing. The agent applies the decisions to
-its codebook and values. Read them against SPEC.md line by line.
+Each function decides (or, for the merged profile, computes); the agent's kernels
+(:mod:`avq.agents._avq_core`) call them and apply the decisions to the codebook and the
+values. Read them against SPEC.md line by line.
 """
 
 from __future__ import annotations
@@ -10,8 +11,8 @@ import numpy as np
 from numba import njit
 
 __all__ = [
-    "CHI", "APPEND", "KEEP", "collision_rule", "may_append", "mean_square_difference", "similar_pairs",
-    "merged_values",
+    "CHI", "APPEND", "KEEP", "collision_rule", "may_append", "mean_square_difference", "similar_profiles",
+    "merge_profiles",
 ]
 
 #: Outcomes of :func:`collision_rule`.
@@ -58,24 +59,14 @@ def mean_square_difference(q_i: np.ndarray, q_j: np.ndarray) -> float:
     return total / m
 
 
-def similar_pairs(pairs: np.ndarray, q: np.ndarray, rho: float) -> np.ndarray:
-    """SPEC §4, criterion 2: the mutual-nearest ``pairs`` whose profiles differ by less than ``rho``.
-
-    The difference is the mean over the ``m`` actions of the squared difference,
-    ``(1/m) * sum_a (Q[i, a] - Q[j, a])**2``.
-    """
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    q = np.asarray(q, dtype=np.float64)
-    keep = [mean_square_difference(q[i], q[j]) < rho for i, j in pairs]
-    return pairs[np.array(keep, dtype=bool)] if len(pairs) else pairs
+@njit(cache=True, inline="always")
+def similar_profiles(q_i: np.ndarray, q_j: np.ndarray, rho: float) -> bool:
+    """SPEC §4, criterion 2: two profiles are similar when their mean square difference is below ``rho``."""
+    return mean_square_difference(q_i, q_j) < rho
 
 
-def merged_values(q: np.ndarray, mapping: np.ndarray, n_new: int) -> np.ndarray:
-    """SPEC §4: rows of ``q`` after a merge; merged cells get ``(Q[i] + Q[j]) / 2``.
-
-    ``mapping[old] = new`` as returned by :meth:`avq.Codebook.merge`.
-    """
-    out = np.zeros((n_new, q.shape[1]))
-    np.add.at(out, mapping, q[: len(mapping)])
-    out /= np.bincount(mapping, minlength=n_new)[:, None]
-    return out
+@njit(cache=True, inline="always")
+def merge_profiles(q_i: np.ndarray, q_j: np.ndarray, out: np.ndarray) -> None:
+    """SPEC §4: the merged cell's profile ``(Q[i] + Q[j]) / 2`` into ``out`` (which may be ``q_i``)."""
+    for a in range(q_i.shape[0]):
+        out[a] = (q_i[a] + q_j[a]) / 2.0

@@ -34,10 +34,11 @@ import math
 import numpy as np
 from numba import njit
 
-from avq._kernels import compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index, nearest_pairs_kernel
+from avq._kernels import borrowed, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index, nearest_pairs_kernel
+from avq.agents._td import clear_traces, epsilon_greedy, greedy_ties, sarsa_lambda, sarsa_td_error
 from avq.rules import APPEND as APPEND_OUTCOME
 from avq.rules import CHI as CHI_OUTCOME
-from avq.rules import collision_rule, may_append, mean_square_difference
+from avq.rules import collision_rule, may_append, mean_square_difference, merge_profiles, similar_profiles
 
 # P: float parameters
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN, ADAPT = range(14)
@@ -70,44 +71,6 @@ def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray)
         z = (V[i, d] - x[d]) * inv_scale[d]
         s += z * z
     return np.sqrt(s)
-
-
-@njit(cache=True, inline="always")
-def greedy_ties(Q: np.ndarray, row: int) -> tuple[int, int]:
-    """The first best action of ``Q[row]`` and how many actions share that value."""
-    m = Q.shape[1]
-    best = Q[row, 0]
-    for k in range(1, m):
-        if Q[row, k] > best:
-            best = Q[row, k]
-    first = -1
-    n_ties = 0
-    for k in range(m):
-        if Q[row, k] == best:
-            if n_ties == 0:
-                first = k
-            n_ties += 1
-    return first, n_ties
-
-
-@njit(cache=True, inline="always")
-def nth_tie(Q: np.ndarray, row: int, pick: int) -> int:
-    """The ``pick``-th (from 0, in index order) of the actions sharing ``Q[row]``'s maximum."""
-    first, _ = greedy_ties(Q, row)
-    best = Q[row, first]
-    for k in range(Q.shape[1]):
-        if Q[row, k] == best:
-            if pick == 0:
-                return k
-            pick -= 1
-    return first
-
-
-# The compiled twin of avq.agents._td.epsilon_greedy, written out where it is used in the fused loops
-# (a helper taking the generator, even inlined, measured 9% slower on GridMaze):
-#     if rng.random() < epsilon: a = rng.integers(0, m)
-#     else: a, n = greedy_ties(Q, j); if n > 1: a = nth_tie(Q, j, rng.integers(0, n))
-# The same draws, in the same order, as the Python version.
 
 
 @njit(cache=True, inline="always")
@@ -163,10 +126,7 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
         born[0, 1] = 0
         S[SIZE] = 1
         S[GEOM] += 1
-    for k in range(1, act[0] + 1):
-        for b in range(E.shape[1]):
-            E[act[k], b] = 0.0
-    act[0] = 0
+    clear_traces(E, act)
     S[EP_STEPS] = 0
     S[APPENDS] = 0
     S[REFUSED] = 0
@@ -258,31 +218,10 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
                 greedy = False
                 break
     if terminated:
-        delta = F[RET] - Q[i, a]
+        delta = sarsa_td_error(Q[i, a], F[RET], F[DISC], 0.0, True)
     else:
-        delta = F[RET] + F[DISC] * Q[j, a_next] - Q[i, a]
-    n_act = act[0]
-    known = False
-    for k in range(1, n_act + 1):
-        if act[k] == i:
-            known = True
-            break
-    if not known:
-        n_act += 1
-        act[n_act] = i
-        act[0] = n_act
-    if IP[REPLACING]:
-        E[i, a] = 1.0
-    else:
-        E[i, a] += 1.0
-    step = P[ALPHA] * delta
-    decay = F[DISC] * P[LAM]
-    m = Q.shape[1]
-    for k in range(1, n_act + 1):
-        s = act[k]
-        for b in range(m):
-            Q[s, b] += step * E[s, b]
-            E[s, b] *= decay
+        delta = sarsa_td_error(Q[i, a], F[RET], F[DISC], Q[j, a_next], False)
+    sarsa_lambda(Q, E, act, i, a, delta, P[ALPHA], F[DISC] * P[LAM], IP[REPLACING] != 0)
     appended = False
     if P[VTRIG] > 0.0 and abs(delta) >= P[VTRIG]:
         if _may_append(scaled_distance(V, j, x, inv_scale), P, IP, S):
@@ -338,12 +277,11 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
         pc[0, 1] = found.shape[0]
         pc[1 : 1 + found.shape[0], :] = found
     pairs = pc[1 : 1 + pc[0, 1]]
-    m = Q.shape[1]
     keep = np.zeros(pairs.shape[0], dtype=np.bool_)
     n_keep = 0
     for k in range(pairs.shape[0]):
         i, j = pairs[k, 0], pairs[k, 1]
-        if not mean_square_difference(Q[i], Q[j]) < P[RHO]:
+        if not similar_profiles(Q[i], Q[j], P[RHO]):  # SPEC §4, criterion 2
             continue
         if IP[MERGE_AGE] > 0:
             if S[EPISODES] - born[i, 0] < IP[MERGE_AGE] or S[EPISODES] - born[j, 0] < IP[MERGE_AGE]:
@@ -380,8 +318,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             chosen[c, 0] = i
             chosen[c, 1] = j
             c += 1
-            for b in range(m):
-                Q[i, b] = (Q[i, b] + Q[j, b]) / 2.0  # avq.rules.merged_values
+            merge_profiles(Q[i], Q[j], Q[i])  # SPEC §4
             born[i, 0] = S[EPISODES]
             born[i, 1] = max(born[i, 1], born[j, 1])
             for b in range(2, born.shape[1]):
@@ -467,3 +404,138 @@ def end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec_row) -> None
     rec_row[R_MERGES] = merges
     rec_row[R_REFUSED] = S[REFUSED]
     rec_row[R_DECISIONS] = S[DECISIONS]
+
+
+@njit(cache=True, inline="always")
+def decide(src, Q, born, P, j: int, scr) -> int:
+    """The ε-greedy decision in cell ``j`` (SPEC §2): on ``Q``, or with count-based exploration on
+    the bonus values (into the scratch row ``scr``, shape ``(1, m)``)."""
+    if P[BONUS] > 0.0:
+        bonus_values(Q, born, P, j, scr)
+        return epsilon_greedy(src, scr, 0, P[EPS])
+    return epsilon_greedy(src, Q, j, P[EPS])
+
+
+# -- the generic path: one compiled call per environment step ----------------------------------
+#
+# The agent's arrays are views of two flat buffers, one float and one int, so that a step hands
+# Numba four arrays instead of a dozen (each array argument costs about 60 ns to unbox). The int
+# buffer begins with (cap, n, m); :func:`unpack` makes the views, :func:`packed_sizes` says how long
+# the buffers are. Float buffer: V (cap, n), Q (cap, m), E (cap, m), inv_scale (n), P, F, a scratch
+# observation (n) and a scratch profile (1, m). Int buffer: the dimensions, born (cap, 2 + m),
+# act (cap + 1), pc (cap + 1, 2), IP, S.
+N_DIMS = 3
+#: Statuses of :func:`generic_step` (an action, >= 0, when the episode goes on).
+ENDED, NEED_DRAWS, BAD_SHAPE, NEED_ROOM = -1, -3, -4, -5  # (NOT_FINITE is -2)
+#: Raw draws a step may need at most, but for Lemire rejections (each has probability < m / 2**32).
+DRAWS_PER_STEP = 16
+
+
+def packed_sizes(cap: int, n: int, m: int) -> tuple[int, int]:
+    """Lengths of the float and int buffers for ``cap`` cells of ``n`` dimensions and ``m`` actions."""
+    floats = cap * n + 2 * cap * m + n + N_P + N_F + n + m
+    ints = N_DIMS + cap * (2 + m) + (cap + 1) + 2 * (cap + 1) + N_IP + N_S
+    return floats, ints
+
+
+@njit(cache=True, inline="always")
+def unpack(fb, ib):
+    """The views ``(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr)`` of the packed buffers
+    (borrowed, see :func:`avq._kernels.borrowed`: they must not outlive the call that made them)."""
+    fb, ib = borrowed(fb), borrowed(ib)
+    cap, n, m = ib[0], ib[1], ib[2]
+    o = 0
+    V = fb[o:o + cap * n].reshape((cap, n))
+    o += cap * n
+    Q = fb[o:o + cap * m].reshape((cap, m))
+    o += cap * m
+    E = fb[o:o + cap * m].reshape((cap, m))
+    o += cap * m
+    inv_scale = fb[o:o + n]
+    o += n
+    P = fb[o:o + N_P]
+    o += N_P
+    F = fb[o:o + N_F]
+    o += N_F
+    x = fb[o:o + n]
+    o += n
+    scr = fb[o:o + m].reshape((1, m))
+    k = N_DIMS
+    born = ib[k:k + cap * (2 + m)].reshape((cap, 2 + m))
+    k += cap * (2 + m)
+    act = ib[k:k + cap + 1]
+    k += cap + 1
+    pc = ib[k:k + 2 * (cap + 1)].reshape((cap + 1, 2))
+    k += 2 * (cap + 1)
+    IP = ib[k:k + N_IP]
+    k += N_IP
+    S = ib[k:k + N_S]
+    return V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr
+
+
+def python_views(fb: np.ndarray, ib: np.ndarray) -> tuple:
+    """The same views as :func:`unpack`, made by NumPy (the agent's attributes)."""
+    cap, n, m = (int(v) for v in ib[:N_DIMS])
+    f_sizes = ((cap, n), (cap, m), (cap, m), (n,), (N_P,), (N_F,), (n,), (1, m))
+    i_sizes = ((cap, 2 + m), (cap + 1,), (cap + 1, 2), (N_IP,), (N_S,))
+    f_views, i_views = _cut(fb, 0, f_sizes), _cut(ib, N_DIMS, i_sizes)
+    V, Q, E, inv_scale, P, F, x, scr = f_views
+    born, act, pc, IP, S = i_views
+    return V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr
+
+
+def _cut(buf: np.ndarray, start: int, shapes: tuple) -> list[np.ndarray]:
+    """Consecutive views of ``buf`` from ``start``, one per shape."""
+    out, o = [], start
+    for shape in shapes:
+        size = int(np.prod(shape))
+        out.append(buf[o:o + size].reshape(shape))
+        o += size
+    return out
+
+
+@njit(cache=True)
+def generic_start(fb, ib, raw, cursor, obs) -> int:
+    """Start an episode at ``obs`` (SPEC §3's first vector if the codebook is empty) and decide its
+    first action; or ``NEED_ROOM`` / ``NEED_DRAWS`` / ``BAD_SHAPE`` / ``NOT_FINITE``, changing nothing."""
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr = unpack(fb, ib)
+    if obs.shape[0] != x.shape[0]:
+        return BAD_SHAPE
+    if S[SIZE] + 1 > V.shape[0]:
+        return NEED_ROOM
+    if raw.shape[0] - cursor[0] < DRAWS_PER_STEP:
+        return NEED_DRAWS
+    for d in range(x.shape[0]):
+        x[d] = obs[d]
+        if not math.isfinite(x[d]):
+            return NOT_FINITE
+    cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
+    S[ACTION] = decide((raw, cursor), Q, born, P, cell, scr)
+    return S[ACTION]
+
+
+@njit(cache=True)
+def generic_step(fb, ib, raw, cursor, obs, r, collision, terminated, truncated) -> int:
+    """One environment step of the generic path: :func:`observe`, then at the end of an aggregate
+    transition the next decision and :func:`learn`. Returns the action to take next, ``ENDED``, or
+    (changing nothing) ``NEED_ROOM``, ``NEED_DRAWS``, ``BAD_SHAPE``, ``NOT_FINITE``."""
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr = unpack(fb, ib)
+    if obs.shape[0] != x.shape[0]:
+        return BAD_SHAPE
+    if S[SIZE] + 3 > V.shape[0]:  # a step appends at most three cells
+        return NEED_ROOM
+    if raw.shape[0] - cursor[0] < DRAWS_PER_STEP:
+        return NEED_DRAWS
+    for d in range(x.shape[0]):
+        x[d] = obs[d]
+    done = terminated or truncated
+    j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, float(r), collision, done)
+    if j == NOT_FINITE:
+        return NOT_FINITE
+    if j < 0:
+        return S[ACTION]
+    a_next = S[ACTION]
+    if not terminated:
+        a_next = decide((raw, cursor), Q, born, P, j, scr)
+    learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
+    return ENDED if done else a_next

@@ -1,142 +1,154 @@
-"""Fused training loops: a built-in maze's dynamics and the AVQ kernels in one compiled loop.
+"""Fused training: a built-in maze's dynamics and an agent's rules in one compiled loop.
 
-The loops call exactly the kernels of :mod:`avq.agents._avq_core` that the generic
-path calls, draw from the same generators in the same order (the agent's for its
-decisions, the environment's ``np_random`` for start positions) and apply the same
-time limit, so that with the same seed both paths give identical codebooks,
-values and episode records.
+:func:`plan` decides whether an environment can be fused: a ``GridMaze``, or a ``RobotMaze``
+with noise-free sonar, under Gymnasium's standard wrappers (:func:`avq.envs.compiled.compiled_maze`).
+The loops read the maze only through its public, frozen description
+(:class:`~avq.envs.grid_maze.GridDynamics`, :class:`~avq.envs.robot_maze.RobotDynamics`) and step
+it with the maze's own compiled moves. They call the very kernels of the generic path
+(:mod:`avq.agents._avq_core`, :mod:`avq.agents._td`), draw from the same generators in the same
+order (the agent's for its decisions, the environment's ``np_random`` for start positions) and
+apply the same step limit, so that with the same seed both paths give identical results.
+
+A loop runs until a budget of steps or episodes is spent and returns ``(steps, episodes,
+status)``; :func:`drive` calls it, grows the agent's arrays when asked, and hands the episode
+back to the environment object (position and elapsed steps), so that stepping it from Python
+goes on from there.
 """
 
 from __future__ import annotations
+
+from typing import Callable
 
 import numpy as np
 from numba import njit
 
 from avq._kernels import borrowed, nearest_index
 from avq.agents._avq_core import (
-    ACTION, BONUS, DONE, EPS, GEOM, IN_EPISODE, NEED_CAPACITY, RECORDS_FULL, SIZE,
-    begin_episode, bonus_values, end_episode, greedy_ties, learn, nth_tie, observe, observe_at,
+    ACTION, DONE, GEOM, IN_EPISODE, N_R, NEED_CAPACITY, RECORDS_FULL, SIZE,
+    begin_episode, decide, end_episode, learn, observe, observe_at,
 )
-from avq.envs.grid_maze import grid_move
+from avq.agents._td import clear_traces, epsilon_greedy, table_step
+from avq.envs.compiled import CompiledMaze, compiled_maze
+from avq.envs.grid_maze import GridDynamics, grid_move
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
+
+__all__ = ["plan", "maze_arguments", "drive", "run_avq_maze", "run_tabular_grid_maze"]
+
+
+def plan(env, grid_only: bool = False) -> CompiledMaze | None:
+    """The maze a fused loop can run for ``env``, or None (step the environment from Python).
+
+    Fused: a ``GridMaze``, or (unless ``grid_only``) a ``RobotMaze`` with noise-free sonar, under
+    Gymnasium's standard wrappers only; any other wrapper may change what a step does.
+    """
+    maze = compiled_maze(env)
+    if maze is None:
+        return None
+    if isinstance(maze.dynamics, GridDynamics):
+        return maze
+    if grid_only or maze.dynamics.sonar_noise != 0.0:
+        return None
+    return maze
+
+
+def maze_arguments(maze: CompiledMaze) -> tuple:
+    """The maze's part of a fused loop's arguments: ``(robot, walls, gx, gy, starts, fixed, move,
+    radius, dirs, sonar_range, observe_sonar, max_episode_steps)``; ``fixed`` is the fixed start, or
+    NaN for random starts."""
+    d = maze.dynamics
+    fixed = np.array(d.fixed_start if d.fixed_start is not None else (np.nan, np.nan), dtype=np.float64)
+    if isinstance(d, GridDynamics):
+        return (False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0,
+                np.zeros((0, 2)), 0.0, False, maze.max_episode_steps)
+    return (True, d.grid, d.goal[0], d.goal[1], d.starts, fixed, d.move, d.radius, d.sonar_directions,
+            d.sonar_range, d.observe_sonar, maze.max_episode_steps)
+
+
+def drive(maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int,
+          max_records: int) -> tuple[int, np.ndarray]:
+    """Run ``kernel(pos, budget_steps, budget_episodes, rec)`` from the environment's current episode
+    until a budget is spent; returns ``(steps, records)`` and leaves the environment where the loop
+    stopped. ``grow()`` makes room when the kernel returns ``NEED_CAPACITY``."""
+    pos = np.array(maze.episode_state(), dtype=np.float64)  # x, y, steps elapsed in the episode
+    rec = np.zeros((min(max_episodes, max_records), N_R))
+    steps = episodes = 0
+    while True:
+        n, eps, status = kernel(pos, max_steps - steps, len(rec) - episodes, rec[episodes:])
+        steps += n
+        episodes += eps
+        if status != NEED_CAPACITY:
+            break
+        grow()
+    maze.set_episode_state(pos[0], pos[1], int(pos[2]))
+    return steps, rec[:episodes]
 
 
 @njit(cache=True, inline="always")
-def _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F):
-    """Borrowed views (see :func:`avq._kernels.borrowed`) of the agent's state arrays."""
-    return (borrowed(V), borrowed(Q), borrowed(E), borrowed(born), borrowed(act), borrowed(pc),
-            borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F))
+def _start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius) -> None:
+    """A new episode's start, drawn as the maze's ``reset`` draws it."""
+    if fixed[0] == fixed[0]:  # not NaN: a fixed start
+        pos[0] = fixed[0]
+        pos[1] = fixed[1]
+    elif robot:
+        pos[0], pos[1] = random_start(env_rng, starts, walls, radius, gx, gy)
+    else:
+        k = env_rng.integers(0, starts.shape[0])
+        pos[0] = starts[k, 0]
+        pos[1] = starts[k, 1]
+    pos[2] = 0.0
 
 
-@njit(cache=True)
-def run_grid_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
-                  walls, gx, gy, starts, fixed, max_episode_steps, pos, budget_steps, budget_episodes, rec):
-    """Train on a GridMaze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
-
-    ``pos`` holds the robot's ``x, y`` and the steps taken in the current episode;
-    ``fixed`` is the fixed start ``(x, y)``, or ``(-1, -1)`` for random starts drawn
-    like ``GridMaze.reset``. Returns ``(steps, episodes, status)``.
-    """
-    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F)
-    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
-    cap = V.shape[0]
-    scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
-    steps = 0
-    episodes = 0
-    # Nearest cell of every grid position, valid while the codebook does not change.
-    cell_cache = np.full(walls.shape, -1, dtype=np.int64)
-    dist_cache = np.zeros(walls.shape)
-    cache_geom = -1
-    x = np.empty(2)
-    x[0] = pos[0]
-    x[1] = pos[1]
-    while True:
-        if S[IN_EPISODE] == 0:
-            if steps >= budget_steps or episodes >= budget_episodes:
-                return steps, episodes, DONE
-            if episodes >= rec.shape[0]:
-                return steps, episodes, RECORDS_FULL
-            if S[SIZE] + 1 > cap:
-                return steps, episodes, NEED_CAPACITY
-            if fixed[0] >= 0:
-                pos[0] = fixed[0]
-                pos[1] = fixed[1]
-            else:
-                k = env_rng.integers(0, starts.shape[0])
-                pos[0] = starts[k, 0]
-                pos[1] = starts[k, 1]
-            pos[2] = 0
-            x[0] = pos[0]
-            x[1] = pos[1]
-            cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
-            if rng.random() < P[EPS]:
-                S[ACTION] = rng.integers(0, Q.shape[1])
-            elif P[BONUS] > 0.0:  # count-based exploration: the greedy decision on bonus values
-                bonus_values(Q, born, P, cell, scr)
-                b, n_ties = greedy_ties(scr, 0)
-                S[ACTION] = b if n_ties == 1 else nth_tie(scr, 0, rng.integers(0, n_ties))
-            else:
-                b, n_ties = greedy_ties(Q, cell)
-                S[ACTION] = b if n_ties == 1 else nth_tie(Q, cell, rng.integers(0, n_ties))
-        if steps >= budget_steps:
-            return steps, episodes, DONE
-        if S[SIZE] + 3 > cap:
-            return steps, episodes, NEED_CAPACITY
-        a = S[ACTION]
-        nx, ny, r, terminated, collision = grid_move(walls, pos[0], pos[1], a, gx, gy)
+@njit(cache=True, inline="always")
+def _move(pos, a, robot, walls, gx, gy, move, radius):
+    """One step of the maze from ``pos`` (in place): ``(reward, terminated, collision)``."""
+    if robot:
+        pos[0], pos[1], r, terminated, collision = robot_move(walls, pos[0], pos[1], a, move, radius, gx, gy)
+    else:
+        nx, ny, r, terminated, collision = grid_move(walls, int(pos[0]), int(pos[1]), a, int(gx), int(gy))
         pos[0] = nx
         pos[1] = ny
-        pos[2] += 1
-        truncated = pos[2] >= max_episode_steps
-        x[0] = nx
-        x[1] = ny
-        steps += 1
-        done = terminated or truncated
-        if cache_geom != S[GEOM]:
-            cell_cache[:, :] = -1
-            cache_geom = S[GEOM]
-        if cell_cache[ny, nx] < 0:
-            c, d2 = nearest_index(V, S[SIZE], x, inv_scale)
-            cell_cache[ny, nx] = c
-            dist_cache[ny, nx] = np.sqrt(d2)
-        j = observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done,
-                       cell_cache[ny, nx], dist_cache[ny, nx])
-        if j < 0:
-            continue
-        a_next = a
-        if not terminated:
-            if rng.random() < P[EPS]:
-                a_next = rng.integers(0, Q.shape[1])
-            elif P[BONUS] > 0.0:
-                bonus_values(Q, born, P, j, scr)
-                a_next, n_ties = greedy_ties(scr, 0)
-                if n_ties > 1:
-                    a_next = nth_tie(scr, 0, rng.integers(0, n_ties))
-            else:
-                a_next, n_ties = greedy_ties(Q, j)
-                if n_ties > 1:
-                    a_next = nth_tie(Q, j, rng.integers(0, n_ties))
-        learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
-        if done:
-            end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
-            episodes += 1
+    pos[2] += 1.0
+    return r, terminated, collision
+
+
+@njit(cache=True, inline="always")
+def _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar) -> None:
+    """The observation at ``pos`` as the agent sees it: GridMaze's integer ``(x, y)``; RobotMaze's
+    float32 values (and sonar ranges), as float64."""
+    if not robot:
+        x[0] = pos[0]
+        x[1] = pos[1]
+        return
+    x[0] = np.float64(np.float32(pos[0]))
+    x[1] = np.float64(np.float32(pos[1]))
+    if observe_sonar:
+        sonar_ranges(walls, pos[0], pos[1], radius, dirs, sonar_range, sonar)
+        for k in range(sonar.shape[0]):
+            x[2 + k] = np.float64(np.float32(sonar[k]))
 
 
 @njit(cache=True)
-def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
-                   grid, gx, gy, starts, fixed, move, radius, dirs, sonar_range, observe_sonar,
-                   max_episode_steps, pos, budget_steps, budget_episodes, rec):
-    """Train on a RobotMaze (noise-free sonar) like :func:`run_grid_maze`.
+def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
+                 robot, walls, gx, gy, starts, fixed, move, radius, dirs, sonar_range, observe_sonar,
+                 max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Train AVQ Sarsa(λ) on a maze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
 
-    ``pos`` holds the robot's ``x, y`` and the steps of the current episode (as a float).
-    Observations are rounded to float32 as the environment's are.
+    The maze's arguments are those of :func:`maze_arguments`; ``pos`` holds the robot's ``x, y`` and
+    the steps taken in the current episode. On GridMaze, the nearest cell of every square is kept
+    while the codebook does not change. Returns ``(steps, episodes, status)``.
     """
-    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = _borrow_state(V, Q, E, born, act, pc, inv_scale, P, IP, S, F)
-    grid, starts, dirs, pos, rec = borrowed(grid), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
+        borrowed(V), borrowed(Q), borrowed(E), borrowed(born), borrowed(act), borrowed(pc),
+        borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F))
+    walls, starts, dirs, pos, rec = borrowed(walls), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
     scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
     steps = 0
     episodes = 0
+    cache_shape = (1, 1) if robot else walls.shape
+    cell_cache = np.full(cache_shape, -1, dtype=np.int64)
+    dist_cache = np.zeros(cache_shape)
+    cache_geom = -1
     x = np.empty(V.shape[1])
     sonar = np.empty(dirs.shape[0])
     while True:
@@ -147,65 +159,40 @@ def run_robot_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
                 return steps, episodes, RECORDS_FULL
             if S[SIZE] + 1 > cap:
                 return steps, episodes, NEED_CAPACITY
-            if fixed[0] == fixed[0]:  # not NaN: fixed start
-                pos[0] = fixed[0]
-                pos[1] = fixed[1]
-            else:
-                pos[0], pos[1] = random_start(env_rng, starts, grid, radius, gx, gy)
-            pos[2] = 0.0
-            _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar)
+            _start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
+            _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
             cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
-            if rng.random() < P[EPS]:
-                S[ACTION] = rng.integers(0, Q.shape[1])
-            elif P[BONUS] > 0.0:  # count-based exploration: the greedy decision on bonus values
-                bonus_values(Q, born, P, cell, scr)
-                b, n_ties = greedy_ties(scr, 0)
-                S[ACTION] = b if n_ties == 1 else nth_tie(scr, 0, rng.integers(0, n_ties))
-            else:
-                b, n_ties = greedy_ties(Q, cell)
-                S[ACTION] = b if n_ties == 1 else nth_tie(Q, cell, rng.integers(0, n_ties))
+            S[ACTION] = decide(rng, Q, born, P, cell, scr)
         if steps >= budget_steps:
             return steps, episodes, DONE
         if S[SIZE] + 3 > cap:
             return steps, episodes, NEED_CAPACITY
         a = S[ACTION]
-        pos[2] += 1.0
-        pos[0], pos[1], r, terminated, collision = robot_move(grid, pos[0], pos[1], a, move, radius, gx, gy)
+        r, terminated, collision = _move(pos, a, robot, walls, gx, gy, move, radius)
         truncated = pos[2] >= max_episode_steps
-        _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar)
+        _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
         steps += 1
         done = terminated or truncated
-        j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r, collision, done)
+        if robot:
+            j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r, collision, done)
+        else:
+            if cache_geom != S[GEOM]:
+                cell_cache[:, :] = -1
+                cache_geom = S[GEOM]
+            iy, ix = int(pos[1]), int(pos[0])
+            if cell_cache[iy, ix] < 0:
+                c, d2 = nearest_index(V, S[SIZE], x, inv_scale)
+                cell_cache[iy, ix] = c
+                dist_cache[iy, ix] = np.sqrt(d2)
+            j = observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done,
+                           cell_cache[iy, ix], dist_cache[iy, ix])
         if j < 0:
             continue
-        a_next = a
-        if not terminated:
-            if rng.random() < P[EPS]:
-                a_next = rng.integers(0, Q.shape[1])
-            elif P[BONUS] > 0.0:
-                bonus_values(Q, born, P, j, scr)
-                a_next, n_ties = greedy_ties(scr, 0)
-                if n_ties > 1:
-                    a_next = nth_tie(scr, 0, rng.integers(0, n_ties))
-            else:
-                a_next, n_ties = greedy_ties(Q, j)
-                if n_ties > 1:
-                    a_next = nth_tie(Q, j, rng.integers(0, n_ties))
+        a_next = a if terminated else decide(rng, Q, born, P, j, scr)
         learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
         if done:
             end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
             episodes += 1
-
-
-@njit(cache=True, inline="always")
-def _robot_obs(x, pos, grid, radius, dirs, sonar_range, observe_sonar, sonar):
-    """The RobotMaze observation as the agent sees it: float32 values, as float64."""
-    x[0] = np.float64(np.float32(pos[0]))
-    x[1] = np.float64(np.float32(pos[1]))
-    if observe_sonar:
-        sonar_ranges(grid, pos[0], pos[1], radius, dirs, sonar_range, sonar)
-        for k in range(sonar.shape[0]):
-            x[2 + k] = np.float64(np.float32(sonar[k]))
 
 
 @njit(cache=True, inline="always")
@@ -223,101 +210,46 @@ def _table_row(row_of, keys, T, x, y):
 
 
 @njit(cache=True)
-def run_tabular_grid_maze(q, e, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
-                          walls, gx, gy, starts, fixed, max_episode_steps, pos, budget_steps, budget_episodes, rec):
-    """Tabular Sarsa(λ) on a GridMaze, the same computation as ``TabularSarsa`` stepping the env.
+def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
+                          robot, walls, gx, gy, starts, fixed, move, radius, dirs, sonar_range, observe_sonar,
+                          max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Tabular Sarsa(λ) on a GridMaze: :func:`avq.agents._td.table_step` at every step, as ``TabularSarsa``
+    does stepping the environment.
 
     ``T``: rows in use, current row, current action, episode steps, rows added this
     episode, in-episode flag; ``TF[0]``: episode return. ``q`` and ``e`` must have a
-    row for every position. Returns ``(steps, episodes)``.
+    row for every position; ``act`` is the active list of :mod:`avq.agents._td`.
+    Returns ``(steps, episodes, status)``.
     """
-    q, e, row_of, keys, T, TF = borrowed(q), borrowed(e), borrowed(row_of), borrowed(keys), borrowed(T), borrowed(TF)
+    q, e, act, row_of, keys, T, TF = (borrowed(q), borrowed(e), borrowed(act), borrowed(row_of), borrowed(keys),
+                                      borrowed(T), borrowed(TF))
     walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
-    decay = gamma * lam
-    m = q.shape[1]
-    # The rows whose traces are non-zero, so that an update touches only those (the others would
-    # change by 0 * step); rebuilt here because a call may start inside an episode.
-    active = np.empty(q.shape[0], dtype=np.int64)
-    is_active = np.zeros(q.shape[0], dtype=np.bool_)
-    n_active = 0
-    for r in range(T[0]):
-        for b in range(m):
-            if e[r, b] != 0.0:
-                active[n_active] = r
-                is_active[r] = True
-                n_active += 1
-                break
     while True:
         if T[5] == 0:
-            if steps >= budget_steps or episodes >= budget_episodes or episodes >= rec.shape[0]:
-                return steps, episodes
-            if fixed[0] >= 0:
-                pos[0] = fixed[0]
-                pos[1] = fixed[1]
-            else:
-                k = env_rng.integers(0, starts.shape[0])
-                pos[0] = starts[k, 0]
-                pos[1] = starts[k, 1]
-            pos[2] = 0
-            for k in range(n_active):
-                r = active[k]
-                is_active[r] = False
-                for b in range(m):
-                    e[r, b] = 0.0
-            n_active = 0
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            _start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
+            clear_traces(e, act)
             T[3] = 0
             T[4] = 0
             TF[0] = 0.0
-            s = _table_row(row_of, keys, T, pos[0], pos[1])
-            T[1] = s
-            if rng.random() < epsilon:
-                T[2] = rng.integers(0, m)
-            else:
-                b, n_ties = greedy_ties(q, s)
-                T[2] = b if n_ties == 1 else nth_tie(q, s, rng.integers(0, n_ties))
+            T[1] = _table_row(row_of, keys, T, int(pos[0]), int(pos[1]))
+            T[2] = epsilon_greedy(rng, q, T[1], epsilon)
             T[5] = 1
         if steps >= budget_steps:
-            return steps, episodes
-        s = T[1]
-        a = T[2]
-        nx, ny, rew, terminated, _ = grid_move(walls, pos[0], pos[1], a, gx, gy)
-        pos[0] = nx
-        pos[1] = ny
-        pos[2] += 1
+            return steps, episodes, DONE
+        r, terminated, _ = _move(pos, T[2], robot, walls, gx, gy, move, radius)
         truncated = pos[2] >= max_episode_steps
         steps += 1
         T[3] += 1
-        TF[0] += rew
-        s2 = _table_row(row_of, keys, T, nx, ny)
-        if terminated:
-            a2 = a
-            delta = rew - q[s, a]
-        else:
-            if rng.random() < epsilon:
-                a2 = rng.integers(0, m)
-            else:
-                a2, n_ties = greedy_ties(q, s2)
-                if n_ties > 1:
-                    a2 = nth_tie(q, s2, rng.integers(0, n_ties))
-            delta = rew + gamma * q[s2, a2] - q[s, a]
-        if replacing:
-            e[s, a] = 1.0
-        else:
-            e[s, a] += 1.0
-        if not is_active[s]:
-            is_active[s] = True
-            active[n_active] = s
-            n_active += 1
-        step = alpha * delta
-        for k in range(n_active):
-            r = active[k]
-            for b in range(m):
-                q[r, b] += step * e[r, b]
-                e[r, b] *= decay
+        TF[0] += r
+        s2 = _table_row(row_of, keys, T, int(pos[0]), int(pos[1]))
+        T[2] = table_step(rng, q, e, act, T[1], T[2], r, s2, terminated, epsilon, alpha, gamma, lam, replacing)
         T[1] = s2
-        T[2] = a2
         if terminated or truncated:
             T[5] = 0
             rec[episodes, 0] = T[3]

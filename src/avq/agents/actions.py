@@ -30,7 +30,6 @@ import numpy as np
 from gymnasium import spaces
 
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
-from avq.agents._td import epsilon_greedy
 from avq.agents.base import (
     BaseAgent,
     EpisodeRecord,
@@ -359,7 +358,7 @@ class ActionCodebookSarsa(BaseAgent):
         self._ep_return = 0.0
         self._check_finite(obs, 0.0, 0)
         self._ep_active = self._features(obs)
-        self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
+        self._ep_action = self._decide(self._values(self._ep_active))
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         return advance_tile_sarsa(self, max_steps, self._env_actions)

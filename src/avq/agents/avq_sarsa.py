@@ -7,10 +7,11 @@ from typing import Any, Sequence
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from numba.core.errors import TypingError
 
 from avq.agents import _avq_core as core
+from avq.agents import _fused
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
-from avq.agents._td import epsilon_greedy
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record, check_int, check_range, check_sarsa_params
 from avq.quantizer import Codebook
 
@@ -249,19 +250,10 @@ class AVQSarsa(BaseAgent):
         return self._Q[: self.n_cells].copy()
 
     def _setup(self) -> None:
-        n = self.env.observation_space.shape[0]
-        cap = min(self.max_cells, 256) + 4
-        self._V = np.zeros((cap, n))
-        self._Q = np.zeros((cap, self.n_actions))
-        self._E = np.zeros((cap, self.n_actions))
-        # Per cell: the episode (1-based) that created it, and the last one with a decision in it.
-        # (and then the decisions taken there with each action).
-        self._born = np.zeros((cap, 2 + self.n_actions), dtype=np.int64)
-        self._act = np.zeros(cap + 1, dtype=np.int64)
-        self._pc = np.zeros((cap + 1, 2), dtype=np.int64)
+        self._allocate(min(self.max_cells, 256) + 4)
         self._pc[0, 0] = -1
-        self._inv_scale = 1.0 / self._scale
-        P = np.zeros(core.N_P)
+        self._inv_scale[:] = 1.0 / self._scale
+        P = self._P
         P[[core.ALPHA, core.LAM, core.GAMMA, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
             self.alpha, self.lam, self.gamma, self.d_min, self.rho, self.chi, self.q_init)
         P[[core.EPS0, core.EPS_DECAY, core.EPS_MIN]] = self.epsilon, self.epsilon_decay, self.epsilon_min
@@ -272,29 +264,38 @@ class AVQSarsa(BaseAgent):
         P[core.ADAPT] = self.adapt_rate
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
-        IP = np.zeros(core.N_IP, dtype=np.int64)
-        IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-            core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER, core.MAKE_ROOM]] = (
+        self._IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
+                  core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER, core.MAKE_ROOM]] = (
             self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
             self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split, self.prune_after,
             self.make_room)
-        self._P, self._IP = P, IP
-        self._S = np.zeros(core.N_S, dtype=np.int64)
         self._S[core.EPISODES] = self.num_episodes
-        self._F = np.zeros(core.N_F)
         self._rec = np.zeros(core.N_R)
+
+    def _allocate(self, cap: int) -> None:
+        """(Re)make the agent's arrays for ``cap`` cells, keeping what they hold.
+
+        Every array is a view of two flat buffers (see :func:`avq.agents._avq_core.unpack`), which the
+        generic path hands to its one compiled call per step.
+        """
+        n, m = self.env.observation_space.shape[0], self.n_actions
+        fb_len, ib_len = core.packed_sizes(cap, n, m)
+        fb, ib = np.zeros(fb_len), np.zeros(ib_len, dtype=np.int64)
+        ib[: core.N_DIMS] = cap, n, m
+        views = core.python_views(fb, ib)
+        if getattr(self, "_fb", None) is not None:
+            for new, old in zip(views, self._views):
+                new[: len(old)] = old
+        self._fb, self._ib, self._views = fb, ib, views
+        (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
+         self._S, self._F, _, _) = views
 
     def _ensure_capacity(self, extra: int) -> None:
         """Room for ``extra`` more cells (the kernels append in place and never reallocate)."""
         cap = self._V.shape[0]
         if self._S[core.SIZE] + extra <= cap:
             return
-        new_cap = max(2 * cap, int(self._S[core.SIZE]) + extra)
-        for name, extra_rows in (("_V", 0), ("_Q", 0), ("_E", 0), ("_born", 0), ("_act", 1), ("_pc", 1)):
-            old = getattr(self, name)
-            new = np.zeros((new_cap + extra_rows,) + old.shape[1:], dtype=old.dtype)
-            new[: len(old)] = old
-            setattr(self, name, new)
+        self._allocate(max(2 * cap, int(self._S[core.SIZE]) + extra))
 
     def _state(self) -> tuple:
         return (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
@@ -307,53 +308,52 @@ class AVQSarsa(BaseAgent):
         return x
 
     # -- the episode loop (SPEC §2, §5; the rules are in avq.agents._avq_core) --------------
+    def _compiled(self, kernel, obs: np.ndarray, step: int, r: Any, *args: Any) -> int:
+        """``kernel(buffers, draws, obs, *args)``, growing the arrays or the draws when it asks for them;
+        raises for an observation of the wrong shape, or an observation or reward that is not finite."""
+        while True:
+            draws = self._draws
+            res = kernel(self._fb, self._ib, draws.raw, draws.cursor, obs, *args)
+            if res == core.NEED_ROOM:
+                self._ensure_capacity(3)
+            elif res == core.NEED_DRAWS:
+                draws.reserve(core.DRAWS_PER_STEP)
+            else:
+                break
+        if res == core.BAD_SHAPE:
+            self._as_obs(obs, step)  # raises, naming the step
+        if res == core.NOT_FINITE:
+            self._refuse_non_finite(obs, r, step)
+        return res
+
     def _begin_episode(self, obs: np.ndarray) -> None:
-        x = self._as_obs(obs, 0)
-        if not np.isfinite(x).all():
-            self._refuse_non_finite(x, 0.0, 0)
-        self._ensure_capacity(1)
-        cell = core.begin_episode(*self._state(), x)
-        self._S[core.ACTION] = epsilon_greedy(self._decision_values(cell), float(self._P[core.EPS]), self._rng)
+        self._compiled(core.generic_start, self._as_obs(obs, 0), 0, 0.0)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, rng, eps, bonus = self.env, self._rng, float(self._P[core.EPS]), self.explore_bonus
-        S = self._S
-        shape = self._V.shape[1:]
+        # One compiled call per step (core.generic_step); what it cannot do at once (more room, more
+        # draws, a bad observation) goes through _compiled, which then hands the step back here.
+        step, kernel, S, draws = self.env.step, core.generic_step, self._S, self._draws
+        fb, ib, raw, cursor = self._fb, self._ib, draws.raw, draws.cursor
+        ended, ndarray = core.ENDED, np.ndarray
         a = int(S[core.ACTION])
         n = 0
-        state = self._state()
-        cap = self._V.shape[0]
         while n < max_steps:
-            if S[core.SIZE] + 3 > cap:  # a step appends at most three cells
-                self._ensure_capacity(3)
-                state = self._state()
-                cap = self._V.shape[0]
-            obs, r, terminated, truncated, info = env.step(a)
+            obs, r, terminated, truncated, info = step(a)
             n += 1
-            x = np.asarray(obs, dtype=np.float64)
-            if x.shape != shape:
-                x = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)  # raises, naming the step
-            done = terminated or truncated
-            # (The ε-greedy draws stay in Python: handing the Generator to compiled code costs ~30 µs a call.)
-            j = core.observe(*state, x, float(r), bool(info.get("collision", False)), done)
-            if j < 0:
-                if j == core.NOT_FINITE:
-                    self._refuse_non_finite(x, r, int(S[core.EP_STEPS]) + 1)
-                continue
-            if not terminated:
-                a = epsilon_greedy(state[1][j] if bonus == 0.0 else self._decision_values(j), eps, rng)
-            core.learn(*state, x, j, a, terminated, done)
-            if done:
+            collision = bool(info.get("collision", False))
+            if type(obs) is not ndarray or obs.ndim != 1:
+                obs = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+            try:
+                a = kernel(fb, ib, raw, cursor, obs, r, collision, terminated, truncated)
+            except TypingError:  # an observation of a dtype the kernel cannot read
+                obs = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+                a = core.NEED_DRAWS
+            if a < ended:
+                a = self._compiled(kernel, obs, int(S[core.EP_STEPS]) + 1, r, r, collision, terminated, truncated)
+                fb, ib, raw = self._fb, self._ib, draws.raw
+            if a == ended:
                 return n, True
         return n, False
-
-    def _decision_values(self, cell: int) -> np.ndarray:
-        """The values ε-greedy decides on in ``cell``: ``Q``, plus the count-based bonus if any."""
-        if self.explore_bonus == 0.0:
-            return self._Q[cell]
-        out = np.empty((1, self.n_actions))
-        core.bonus_values(self._Q, self._born, self._P, cell, out)
-        return out[0]
 
     def _end_episode(self) -> EpisodeRecord:
         core.end_episode(*self._state(), self._rec)
@@ -361,71 +361,20 @@ class AVQSarsa(BaseAgent):
 
     # -- the fused loop (avq.agents._fused) ------------------------------------------------
     def _fused_runner(self):
-        if not self.fused:
+        maze = _fused.plan(self.env) if self.fused else None
+        if maze is None:
             return None
-        plan = _fused_plan(self.env)
-        if plan is None:
-            return None
-        base, time_limit, order = plan
-        from avq.agents import _fused
-        from avq.envs.grid_maze import GridMaze
+        args = _fused.maze_arguments(maze)
 
-        layout = base.layout
-        limit = time_limit._max_episode_steps if time_limit is not None else 1 << 62
-        if isinstance(base, GridMaze):
-            walls = np.ascontiguousarray(layout.walls)
-            starts = np.ascontiguousarray(base._starts, dtype=np.int64)
-            fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
+        def kernel(pos, budget_steps, budget_episodes, rec):
+            return _fused.run_avq_maze(*self._state(), self._rng, maze.np_random, *args, pos, budget_steps,
+                                       budget_episodes, rec)
 
-            def get_pos():
-                elapsed = (time_limit._elapsed_steps or 0) if time_limit is not None else 0
-                return np.array([base._x, base._y, elapsed], dtype=np.int64)
-
-            def set_pos(pos):
-                base._x, base._y = int(pos[0]), int(pos[1])
-                return int(pos[2])
-
-            def kernel(pos, budget_steps, budget_episodes, rec):
-                return _fused.run_grid_maze(
-                    *self._state(), self._rng, base.np_random, walls, layout.goal[0], layout.goal[1], starts,
-                    fixed, limit, pos, budget_steps, budget_episodes, rec)
-        else:  # RobotMaze with noise-free sonar
-            starts = np.ascontiguousarray(base._starts, dtype=np.int64)
-            fixed = np.array([float(v) for v in layout.start] if base.start == "fixed" else [np.nan, np.nan])
-            limit = min(limit, base.max_steps)
-
-            def get_pos():
-                return np.array([base._x, base._y, float(base._steps)])
-
-            def set_pos(pos):
-                base._x, base._y, base._steps = float(pos[0]), float(pos[1]), int(pos[2])
-                base._sense()
-                return int(pos[2])
-
-            def kernel(pos, budget_steps, budget_episodes, rec):
-                return _fused.run_robot_maze(
-                    *self._state(), self._rng, base.np_random, base._grid, base._gx, base._gy, starts, fixed,
-                    base.move, base.radius, base._dirs, base.sonar_range, base.observe_sonar, float(limit), pos,
-                    budget_steps, budget_episodes, rec)
-
-        def run(max_steps_budget: int, max_episodes: int, max_records: int):
-            pos = get_pos()
-            rec = np.zeros((min(max_episodes, max_records), core.N_R))
-            steps = episodes = 0
-            while True:
-                n, eps, status = kernel(pos, max_steps_budget - steps, len(rec) - episodes, rec[episodes:])
-                steps += n
-                episodes += eps
-                if status != core.NEED_CAPACITY:
-                    break
-                self._ensure_capacity(4)
-            # Bring the environment object up to date, so that stepping it from Python continues here.
-            elapsed = set_pos(pos)
-            if time_limit is not None:
-                time_limit._elapsed_steps = elapsed
-            if order is not None:
-                order._has_reset = True
-            return steps, rec[:episodes], bool(self._S[core.IN_EPISODE])
+        def run(max_steps: int, max_episodes: int, max_records: int):
+            self._draws.sync()  # the loop draws from the generator itself
+            steps, rows = _fused.drive(maze, kernel, lambda: self._ensure_capacity(4), max_steps, max_episodes,
+                                       max_records)
+            return steps, rows, bool(self._S[core.IN_EPISODE])
 
         return run
 
@@ -478,26 +427,3 @@ class AVQSarsa(BaseAgent):
 
 #: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.
 _MERGE_PAIRS = ("mutual", "mutual_ties", "nearest")
-
-
-def _fused_plan(env: gym.Env):
-    """``(maze, TimeLimit or None, OrderEnforcing or None)`` if ``env`` is a GridMaze, or a RobotMaze
-    with noise-free sonar, under only Gymnasium's standard wrappers; else None."""
-    from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
-
-    from avq.envs.grid_maze import GridMaze
-    from avq.envs.robot_maze import RobotMaze
-
-    time_limit = order = None
-    e = env
-    while isinstance(e, gym.Wrapper):
-        if isinstance(e, TimeLimit) and time_limit is None:
-            time_limit = e
-        elif isinstance(e, OrderEnforcing):
-            order = e
-        elif not isinstance(e, PassiveEnvChecker):
-            return None
-        e = e.env
-    if type(e) is GridMaze or (type(e) is RobotMaze and e.sonar_noise == 0.0):
-        return e, time_limit, order
-    return None

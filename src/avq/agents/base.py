@@ -23,6 +23,8 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._io import ProgressLog, atomic_write_bytes
+from avq._random import RawStream
+from avq.agents._td import decide
 from avq.agents._history import EpisodeHistory
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
@@ -154,6 +156,8 @@ class BaseAgent:
         seq = np.random.SeedSequence(self.seed)
         agent_seq, env_seq, predict_seq = seq.spawn(3)
         self._rng = np.random.default_rng(agent_seq)
+        #: The agent's draws for compiled code called once per step (the same stream as ``_rng``).
+        self._draws = RawStream(self._rng)
         self._predict_rng = np.random.default_rng(predict_seq)
         self._env_seed: int | None = int(env_seq.generate_state(1)[0])
         self.num_timesteps = 0
@@ -205,6 +209,12 @@ class BaseAgent:
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         raise NotImplementedError
+
+    def _decide(self, values: np.ndarray) -> int:
+        """ε-greedy over one profile of action values (:func:`avq.agents._td.epsilon_greedy`), drawn
+        from the agent's stream."""
+        self._draws.reserve(16)
+        return int(decide(self._draws.src, values.reshape(1, -1), 0, self.epsilon))
 
     def _check_finite(self, obs: Any, r: Any, step: int) -> None:
         """Refuse an observation or reward that is NaN or infinite, naming the step (0: the reset)."""
@@ -406,7 +416,9 @@ class BaseAgent:
     # -- saving -------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """JSON-able counters and the learned arrays; subclasses extend."""
-        env_rng = getattr(self.env.unwrapped, "_np_random", None)
+        self._draws.sync()
+        # The environment's generator exists once it was reset (before that, the first reset's seed is saved).
+        env_rng = self.env.unwrapped.np_random if self._env_seed is None else None
         meta = {
             "num_timesteps": self.num_timesteps,
             "num_episodes": self.num_episodes,

@@ -9,8 +9,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_sarsa_params, episode_record
+from avq.agents._table import TableSarsa
+from avq.agents.base import check_sarsa_params
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 
 __all__ = ["GridSarsa"]
@@ -30,7 +30,7 @@ def bin_coordinates(x: np.ndarray, low: np.ndarray, bins_per_unit: np.ndarray, b
     return np.clip(k, 0, bins - 1)
 
 
-class GridSarsa(BaseAgent):
+class GridSarsa(TableSarsa):
     """Sarsa(λ) on a fixed uniform discretization of a ``Box`` observation space.
 
     Every dimension is cut into equal bins between its bounds (the space's, or
@@ -109,10 +109,6 @@ class GridSarsa(BaseAgent):
 
     # -- learned state ------------------------------------------------------------------
     @property
-    def n_cells(self) -> int:
-        return self._n if self._is_setup else 0
-
-    @property
     def q_(self) -> np.ndarray:
         out = np.full((self._n_bins, self.n_actions), self.q_init)
         if self._is_setup:
@@ -133,16 +129,9 @@ class GridSarsa(BaseAgent):
         return bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides
 
     def _setup(self) -> None:
-        self._q = np.full((self._n_bins, self.n_actions), self.q_init)
-        self._e = np.zeros((self._n_bins, self.n_actions))
+        self._make_table(self._n_bins)
         self._row_of_bin = np.full(self._n_bins, -1, dtype=np.int64)
         self._bin_of_row = np.zeros(self._n_bins, dtype=np.int64)
-        self._n = 0
-        self._ep_row = 0
-        self._ep_action = 0
-        self._ep_steps = 0
-        self._ep_return = 0.0
-        self._ep_new = 0
 
     def _row(self, obs: Any) -> int:
         """The table row of ``obs``'s bin, handing out the next row on a first visit."""
@@ -161,48 +150,6 @@ class GridSarsa(BaseAgent):
             self._n += 1
             self._ep_new += 1
         return row
-
-    # -- the episode loop -----------------------------------------------------------------
-    def _begin_episode(self, obs: np.ndarray) -> None:
-        self._e[: self._n] = 0.0
-        self._ep_steps = 0
-        self._ep_return = 0.0
-        self._ep_new = 0
-        self._check_finite(obs, 0.0, 0)
-        self._ep_row = self._row(obs)
-        self._ep_action = epsilon_greedy(self._q[self._ep_row], self.epsilon, self._rng)
-
-    def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, q = self.env, self._q
-        s, a = self._ep_row, self._ep_action
-        replacing = self.traces == "replacing"
-        decay = self.gamma * self.lam
-        n = 0
-        ended = False
-        while n < max_steps:
-            obs, r, terminated, truncated, _ = env.step(a)
-            n += 1
-            self._check_finite(obs, r, self._ep_steps + n)
-            r = float(r)
-            self._ep_return += r
-            if terminated:
-                s2, a2 = s, a
-                delta = sarsa_td_error(q[s, a], r, self.gamma, 0.0, True)
-            else:
-                s2 = self._row(obs)
-                a2 = epsilon_greedy(q[s2], self.epsilon, self._rng)
-                delta = sarsa_td_error(q[s, a], r, self.gamma, q[s2, a2], False)
-            sarsa_lambda_update(q, self._e, s, a, delta, self.alpha, decay, replacing, self._n)
-            s, a = s2, a2
-            if terminated or truncated:
-                ended = True
-                break
-        self._ep_row, self._ep_action = s, a
-        self._ep_steps += n
-        return n, ended
-
-    def _end_episode(self) -> EpisodeRecord:
-        return episode_record(self._ep_steps, self._ep_return, self._n, self._ep_new)
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         rows = self._row_of_bin[self.cells(obs)]

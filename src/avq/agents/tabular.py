@@ -8,13 +8,14 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record, check_int, check_sarsa_params
+from avq.agents import _fused
+from avq.agents._table import TableSarsa
+from avq.agents.base import check_int, check_sarsa_params
 
 __all__ = ["TabularSarsa"]
 
 
-class TabularSarsa(BaseAgent):
+class TabularSarsa(TableSarsa):
     """Sarsa(λ) with a table row for every distinct observation.
 
     Accepts ``Discrete`` observation spaces (row = observation) and small ``Box``
@@ -71,10 +72,6 @@ class TabularSarsa(BaseAgent):
         self._discrete = isinstance(obs_space, spaces.Discrete)
 
     @property
-    def n_cells(self) -> int:
-        return self._n if self._is_setup else 0
-
-    @property
     def q_(self) -> np.ndarray:
         return self._q[: self._n].copy()
 
@@ -83,17 +80,9 @@ class TabularSarsa(BaseAgent):
         return np.array(self._keys, dtype=np.float64).reshape(self._n, -1)
 
     def _setup(self) -> None:
-        cap = int(self.env.observation_space.n) if self._discrete else 256  # type: ignore[attr-defined]
-        self._q = np.full((cap, self.n_actions), self.q_init)
-        self._e = np.zeros((cap, self.n_actions))
+        self._make_table(int(self.env.observation_space.n) if self._discrete else 256)  # type: ignore[attr-defined]
         self._index: dict[Any, int] = {}
         self._keys: list[Any] = []
-        self._n = 0
-        self._ep_state = 0
-        self._ep_action = 0
-        self._ep_steps = 0
-        self._ep_return = 0.0
-        self._ep_new = 0
 
     def _key(self, obs: Any) -> Any:
         if self._discrete:
@@ -113,10 +102,7 @@ class TabularSarsa(BaseAgent):
                 f"TabularSarsa has seen {self._n} distinct observations (max_states); the observation "
                 "space is too fine for a table: use 'grid', 'tiles' or an AVQ agent"
             )
-        if self._n == self._q.shape[0]:
-            cap = self._q.shape[0]
-            self._q = np.concatenate([self._q, np.full((cap, self.n_actions), self.q_init)])
-            self._e = np.concatenate([self._e, np.zeros((cap, self.n_actions))])
+        self._grow_table(self._n + 1)
         row = self._n
         self._index[key] = row
         self._keys.append(key)
@@ -124,97 +110,39 @@ class TabularSarsa(BaseAgent):
         self._ep_new += 1
         return row
 
-    def _begin_episode(self, obs: np.ndarray) -> None:
-        self._e[: self._n] = 0.0
-        self._ep_steps = 0
-        self._ep_return = 0.0
-        self._ep_new = 0
-        self._check_finite(obs, 0.0, 0)
-        self._ep_state = self._row(obs)
-        self._ep_action = epsilon_greedy(self._q[self._ep_state], self.epsilon, self._rng)
-
-    def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env = self.env
-        s, a = self._ep_state, self._ep_action
-        replacing = self.traces == "replacing"
-        decay = self.gamma * self.lam
-        n = 0
-        ended = False
-        while n < max_steps:
-            obs, r, terminated, truncated, _ = env.step(a)
-            n += 1
-            self._check_finite(obs, r, self._ep_steps + n)
-            r = float(r)
-            self._ep_return += r
-            s2 = self._row(obs)
-            q = self._q
-            if terminated:
-                a2 = a
-                delta = sarsa_td_error(q[s, a], r, self.gamma, 0.0, True)
-            else:
-                a2 = epsilon_greedy(q[s2], self.epsilon, self._rng)
-                delta = sarsa_td_error(q[s, a], r, self.gamma, q[s2, a2], False)
-            sarsa_lambda_update(q, self._e, s, a, delta, self.alpha, decay, replacing, self._n)
-            s, a = s2, a2
-            if terminated or truncated:
-                ended = True
-                break
-        self._ep_state, self._ep_action = s, a
-        self._ep_steps += n
-        return n, ended
-
-    def _end_episode(self) -> EpisodeRecord:
-        return episode_record(self._ep_steps, self._ep_return, self._n, self._ep_new)
-
     def _fused_runner(self):
-        from avq.agents.avq_sarsa import _fused_plan
-        from avq.envs.grid_maze import GridMaze
-
-        plan = _fused_plan(self.env) if self.fused else None
-        if plan is None or not isinstance(plan[0], GridMaze) or self._discrete:
+        maze = _fused.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
+        if maze is None:
             return None
-        base, time_limit, order = plan
-        layout = base.layout
-        h, w = layout.height, layout.width
-        walls = np.ascontiguousarray(layout.walls)
-        starts = np.ascontiguousarray(base._starts, dtype=np.int64)
-        fixed = np.array(layout.start if base.start == "fixed" else (-1, -1), dtype=np.int64)
-        limit = time_limit._max_episode_steps if time_limit is not None else 1 << 62
+        h, w = maze.dynamics.walls.shape
+        args = _fused.maze_arguments(maze)
 
-        def run(max_steps_budget: int, max_episodes: int, max_records: int):
-            from avq.agents._fused import run_tabular_grid_maze
-
-            while self._q.shape[0] < h * w:  # a row for every position, as _row would grow it
-                cap = self._q.shape[0]
-                self._q = np.concatenate([self._q, np.full((cap, self.n_actions), self.q_init)])
-                self._e = np.concatenate([self._e, np.zeros((cap, self.n_actions))])
+        def run(max_steps: int, max_episodes: int, max_records: int):
+            self._draws.sync()  # the loop draws from the generator itself
+            self._grow_table(h * w)  # a row for every position, as _row would grow it
             row_of = np.full((h, w), -1, dtype=np.int64)
             keys = np.zeros((h * w, 2), dtype=np.int64)
             for key, row in self._index.items():
                 row_of[int(key[1]), int(key[0])] = row
                 keys[row] = int(key[0]), int(key[1])
-            T = np.array([self._n, self._ep_state, self._ep_action, self._ep_steps, self._ep_new,
+            T = np.array([self._n, self._ep_row, self._ep_action, self._ep_steps, self._ep_new,
                           int(self._in_episode)], dtype=np.int64)
             TF = np.array([self._ep_return])
-            elapsed = (time_limit._elapsed_steps or 0) if time_limit is not None else 0
-            pos = np.array([base._x, base._y, elapsed], dtype=np.int64)
-            rec = np.zeros((min(max_episodes, max_records), 7))
-            steps, episodes = run_tabular_grid_maze(
-                self._q, self._e, row_of, keys, T, TF, self.alpha, self.gamma, self.lam, self.epsilon,
-                self.traces == "replacing", self._rng, base.np_random, walls, layout.goal[0], layout.goal[1],
-                starts, fixed, limit, pos, max_steps_budget, min(max_episodes, max_records), rec)
+
+            def kernel(pos, budget_steps, budget_episodes, rec):
+                return _fused.run_tabular_grid_maze(
+                    self._q, self._e, self._act, row_of, keys, T, TF, self.alpha, self.gamma, self.lam,
+                    self.epsilon, self.traces == "replacing", self._rng, maze.np_random, *args, pos, budget_steps,
+                    budget_episodes, rec)
+
+            steps, rows = _fused.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)
             for row in range(self._n, int(T[0])):
                 key = (float(keys[row, 0]), float(keys[row, 1]))
                 self._index[key] = row
                 self._keys.append(key)
-            self._n, self._ep_state, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:5])
+            self._n, self._ep_row, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:5])
             self._ep_return = float(TF[0])
-            base._x, base._y = int(pos[0]), int(pos[1])
-            if time_limit is not None:
-                time_limit._elapsed_steps = int(pos[2])
-            if order is not None:
-                order._has_reset = True
-            return steps, rec[:episodes], bool(T[5])
+            return steps, rows, bool(T[5])
 
         return run
 

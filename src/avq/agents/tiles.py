@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
+from avq.agents._td import decide, sarsa_td_error, tile_step
 from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.tilecoding import TileCoder
@@ -18,7 +18,7 @@ __all__ = ["TileSarsa", "mark_traces"]
 
 def mark_traces(e: np.ndarray, active: np.ndarray, a: int, replacing: bool) -> None:
     """Mark the traces of the active tiles for action ``a``, all but what
-    :func:`avq.agents._td.sarsa_lambda_update` marks itself.
+    :func:`avq.agents._td.trace_update` marks itself.
 
     That function marks the trace of one (row, action), ``(active[0], a)``, and then
     updates every row; a tile-coded state has one row per tiling, so the others are
@@ -41,6 +41,7 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
     """The Sarsa(λ) steps of a tile-coded agent (``TileSarsa``, ``ActionCodebookSarsa``) for at most
     ``max_steps`` steps; action ``a`` is sent to the environment as ``env_actions[a]`` if given."""
     env, w, e, coder = agent.env, agent._w, agent._e, agent._coder
+    rows = np.arange(w.shape[0])
     active, a = agent._ep_active, agent._ep_action
     replacing = agent.traces == "replacing"
     decay = agent.gamma * agent.lam
@@ -59,11 +60,11 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
         else:
             active2 = agent._features(obs)
             q2 = agent._values(active2)
-            a2 = epsilon_greedy(q2, agent.epsilon, agent._rng)
+            a2 = agent._decide(q2)
             delta = sarsa_td_error(q_sa, r, agent.gamma, q2[a2], False)
         mark_traces(e, active, a, replacing)
         # Rows are handed out in order of first use: rows past n_used have zero traces.
-        sarsa_lambda_update(w, e, int(active[0]), a, delta, agent._step_size, decay, replacing, coder.n_used)
+        tile_step(w, e, rows, coder.n_used, int(active[0]), a, delta, agent._step_size, decay, replacing)
         active, a = active2, a2
         if terminated or truncated:
             ended = True
@@ -207,7 +208,7 @@ class TileSarsa(BaseAgent):
         self._ep_overflows0 = self._coder.overflows
         self._check_finite(obs, 0.0, 0)
         self._ep_active = self._features(obs)
-        self._ep_action = epsilon_greedy(self._values(self._ep_active), self.epsilon, self._rng)
+        self._ep_action = self._decide(self._values(self._ep_active))
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         return advance_tile_sarsa(self, max_steps)

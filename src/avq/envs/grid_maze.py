@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -11,7 +12,7 @@ from numba import njit
 
 from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
 
-__all__ = ["GridMaze", "NORTH", "EAST", "SOUTH", "WEST"]
+__all__ = ["GridMaze", "GridDynamics", "grid_move", "NORTH", "EAST", "SOUTH", "WEST"]
 
 NORTH, EAST, SOUTH, WEST = 0, 1, 2, 3
 
@@ -19,6 +20,37 @@ GOAL_REWARD = 10.0
 MOVE_REWARD = -1.0
 BUMP_REWARD = -10.0
 
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only contiguous copy of ``a`` (the arrays of a frozen dynamics description)."""
+    out = np.ascontiguousarray(a).copy()
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class GridDynamics:
+    """Everything a compiled loop needs to run a :class:`GridMaze` exactly as ``step`` and ``reset`` do.
+
+    The moves are :func:`grid_move` on these arrays; ``reset`` without options draws
+    ``starts[env.np_random.integers(len(starts))]``, or takes ``fixed_start``. The step limit
+    is not the maze's own: ``avq/GridMaze-v0`` gets it from Gymnasium's ``TimeLimit``.
+
+    Attributes:
+        walls: ``(H, W)`` bool, True on barriers (read-only).
+        goal: the goal square ``(x, y)``.
+        starts: ``(k, 2)`` int64 free non-goal squares ``(x, y)``, row-major (read-only).
+        fixed_start: the start of every episode with ``start="fixed"``, else None.
+        goal_reward, move_reward, bump_reward: the rewards of :func:`grid_move`.
+    """
+
+    walls: np.ndarray
+    goal: tuple[int, int]
+    starts: np.ndarray
+    fixed_start: tuple[int, int] | None
+    goal_reward: float = GOAL_REWARD
+    move_reward: float = MOVE_REWARD
+    bump_reward: float = BUMP_REWARD
 
 
 @njit(cache=True, inline="always")
@@ -104,6 +136,12 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         self._dist = self.layout.distances.tolist()
         self._gx, self._gy = self.layout.goal
         self._x, self._y = 0, 0
+        self.dynamics = GridDynamics(
+            walls=read_only(self.layout.walls), goal=(int(self._gx), int(self._gy)),
+            starts=read_only(self._starts.astype(np.int64)),
+            fixed_start=tuple(int(v) for v in self.layout.start) if start == "fixed" else None,
+        )
+        """The maze's dynamics as frozen data (:class:`GridDynamics`), for compiled loops."""
 
     # -- Gymnasium API -------------------------------------------------------------
     def reset(
@@ -142,6 +180,14 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
     def position(self) -> tuple[int, int]:
         """The robot's current ``(x, y)``."""
         return self._x, self._y
+
+    def place(self, x: int, y: int) -> None:
+        """Put the robot on square ``(x, y)`` without starting an episode.
+
+        For a loop that ran :attr:`dynamics` itself and hands the episode back to
+        ``step`` (avq's fused training): the episode goes on from there.
+        """
+        self._x, self._y = int(x), int(y)
 
     def _checked_start(self, start: Any) -> tuple[int, int]:
         try:

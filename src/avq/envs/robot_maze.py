@@ -18,6 +18,7 @@ needs a bounds check. Padded cell ``(i, j)`` covers world
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -33,10 +34,12 @@ from avq.envs.grid_maze import (
     NORTH,
     SOUTH,
     WEST,
+    read_only,
 )
 from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
 
-__all__ = ["RobotMaze", "N_SONARS", "NORTH", "EAST", "SOUTH", "WEST"]
+__all__ = ["RobotMaze", "RobotDynamics", "robot_move", "random_start", "sonar_ranges", "N_SONARS", "NORTH", "EAST",
+           "SOUTH", "WEST"]
 
 #: Number of sonar beams (the Sensus 300 ring of the Nomad 200, SPEC §6).
 N_SONARS = 16
@@ -274,6 +277,45 @@ def lattice_distances(valid: np.ndarray, goal: np.ndarray) -> np.ndarray:
 # -- the environment ---------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class RobotDynamics:
+    """Everything a compiled loop needs to run a :class:`RobotMaze` exactly as ``step`` and ``reset`` do.
+
+    A step is :func:`robot_move` on ``grid``, then the observation: the centre, and with
+    ``observe_sonar`` the ranges of :func:`sonar_ranges` (plus Gaussian noise of
+    ``sonar_noise`` from ``env.np_random``), each rounded to float32. ``reset`` without
+    options draws :func:`random_start` from ``env.np_random``, or takes ``fixed_start``.
+    The episode is truncated after ``max_steps`` steps.
+
+    Attributes:
+        grid: the padded wall grid ``(H + 2, W + 2)`` (:func:`padded_walls`, read-only).
+        goal: the goal square's centre ``(x, y)``.
+        starts: ``(k, 2)`` int64 centres of the free non-goal squares (read-only).
+        fixed_start: the start of every episode with ``start="fixed"``, else None.
+        move, radius: the length of a move and the robot's radius.
+        sonar_directions: ``(16, 2)`` unit vectors of the beams (read-only).
+        sonar_range, sonar_noise, observe_sonar: the sonar's range, noise and whether it is observed.
+        max_steps: the maze's own step limit.
+        goal_reward, move_reward, bump_reward: the rewards of :func:`robot_move`.
+    """
+
+    grid: np.ndarray
+    goal: tuple[float, float]
+    starts: np.ndarray
+    fixed_start: tuple[float, float] | None
+    move: float
+    radius: float
+    sonar_directions: np.ndarray
+    sonar_range: float
+    sonar_noise: float
+    observe_sonar: bool
+    max_steps: int
+    goal_reward: float = GOAL_REWARD
+    move_reward: float = MOVE_REWARD
+    bump_reward: float = BUMP_REWARD
+
+
+
 class RobotMaze(gym.Env[np.ndarray, np.int64]):
     """A disc-shaped robot with 16 sonars moves through a continuous maze towards a goal.
 
@@ -412,6 +454,14 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         self._sonar = np.zeros(N_SONARS, dtype=np.float64)
         # shortest_steps: lattice origin (rounded) -> (x0, y0, distances).
         self._lattices: dict[tuple[float, float], tuple[float, float, np.ndarray]] = {}
+        self.dynamics = RobotDynamics(
+            grid=read_only(self._grid), goal=(self._gx, self._gy), starts=read_only(self._starts.astype(np.int64)),
+            fixed_start=tuple(float(v) for v in self.layout.start) if start == "fixed" else None,
+            move=self.move, radius=self.radius, sonar_directions=read_only(self._dirs),
+            sonar_range=self.sonar_range, sonar_noise=self.sonar_noise, observe_sonar=self.observe_sonar,
+            max_steps=self.max_steps,
+        )
+        """The maze's dynamics as frozen data (:class:`RobotDynamics`), for compiled loops."""
 
     # -- Gymnasium API -------------------------------------------------------------
     def reset(
@@ -499,6 +549,21 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
     def position(self) -> tuple[float, float]:
         """The robot's current centre ``(x, y)``."""
         return self._x, self._y
+
+    @property
+    def elapsed_steps(self) -> int:
+        """Steps taken in the current episode (the maze truncates at ``max_steps``)."""
+        return self._steps
+
+    def place(self, x: float, y: float, elapsed_steps: int) -> None:
+        """Put the robot at ``(x, y)``, ``elapsed_steps`` into the episode, without starting one.
+
+        For a loop that ran :attr:`dynamics` itself and hands the episode back to
+        ``step`` (avq's fused training): the episode goes on from there. The sonar is
+        read again at the new position.
+        """
+        self._x, self._y, self._steps = float(x), float(y), int(elapsed_steps)
+        self._sense()
 
     @property
     def sonar(self) -> np.ndarray:

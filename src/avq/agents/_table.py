@@ -1,0 +1,93 @@
+"""What the table agents share (``tabular``, ``grid``): Sarsa(λ) with one decision per primitive step on the
+rows of a table, and the one step loop that runs it from Python.
+
+A subclass says how an observation finds its row (:meth:`TableSarsa._row`, which hands out a new row
+on a first visit); the step itself is :func:`avq.agents._td.table_step`, the same compiled function
+the fused loop of ``tabular`` calls. Every observation reached gets a row, the terminal one included
+(so ``n_cells`` counts every observation or bin seen), although a terminal row is never learned from.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from avq.agents._td import clear_traces, decide, table_step
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+
+__all__ = ["TableSarsa"]
+
+#: Raw draws a decision needs at most, but for rejections of probability below m / 2**32 each.
+_DRAWS = 16
+
+
+class TableSarsa(BaseAgent):
+    """Base of the table agents: ``_q``, ``_e`` ``(rows, m)``, the active list ``_act`` of
+    :mod:`avq.agents._td`, ``_n`` rows in use; the episode's row, action, steps, return and new rows."""
+
+    def _row(self, obs: Any) -> int:
+        """The row of ``obs``, handed out (and counted in ``_ep_new``) on a first visit."""
+        raise NotImplementedError
+
+    def _make_table(self, rows: int) -> None:
+        self._q = np.full((rows, self.n_actions), self.q_init)
+        self._e = np.zeros((rows, self.n_actions))
+        self._act = np.zeros(rows + 1, dtype=np.int64)
+        self._n = 0
+        self._ep_row = 0
+        self._ep_action = 0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._ep_new = 0
+
+    def _grow_table(self, rows: int) -> None:
+        """At least ``rows`` rows, new ones at ``q_init`` (doubling, so that growth is rare)."""
+        cap = self._q.shape[0]
+        if rows <= cap:
+            return
+        new = max(rows, 2 * cap)
+        self._q = np.concatenate([self._q, np.full((new - cap, self.n_actions), self.q_init)])
+        self._e = np.concatenate([self._e, np.zeros((new - cap, self.n_actions))])
+        self._act = np.concatenate([self._act, np.zeros(new - cap, dtype=np.int64)])
+
+    @property
+    def n_cells(self) -> int:
+        return self._n if self._is_setup else 0
+
+    def _begin_episode(self, obs: Any) -> None:
+        clear_traces(self._e, self._act)
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._ep_new = 0
+        self._check_finite(obs, 0.0, 0)
+        self._ep_row = self._row(obs)
+        self._draws.reserve(_DRAWS)
+        self._ep_action = int(decide(self._draws.src, self._q, self._ep_row, self.epsilon))
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        env, draws = self.env, self._draws
+        s, a = self._ep_row, self._ep_action
+        replacing = self.traces == "replacing"
+        n = 0
+        ended = False
+        while n < max_steps:
+            obs, r, terminated, truncated, _ = env.step(a)
+            n += 1
+            self._check_finite(obs, r, self._ep_steps + n)
+            r = float(r)
+            self._ep_return += r
+            s2 = self._row(obs)
+            draws.reserve(_DRAWS)
+            a = int(table_step(draws.src, self._q, self._e, self._act, s, a, r, s2, bool(terminated), self.epsilon,
+                               self.alpha, self.gamma, self.lam, replacing))
+            s = s2
+            if terminated or truncated:
+                ended = True
+                break
+        self._ep_row, self._ep_action = s, a
+        self._ep_steps += n
+        return n, ended
+
+    def _end_episode(self) -> EpisodeRecord:
+        return episode_record(self._ep_steps, self._ep_return, self._n, self._ep_new)

@@ -1,0 +1,101 @@
+"""The contract between avq's mazes and the compiled loops that run them.
+
+A loop that runs a maze's dynamics itself (avq's fused training, the greedy walks of
+:func:`avq.evaluate_maze`) reads the maze only through this module and the maze's
+public :attr:`~avq.envs.GridMaze.dynamics` (a frozen :class:`~avq.envs.grid_maze.GridDynamics`
+or :class:`~avq.envs.robot_maze.RobotDynamics`). :func:`compiled_maze` unwraps an
+environment made by ``gymnasium.make`` and gives a :class:`CompiledMaze`: the dynamics,
+the step limit in force, the generator that draws the starts, and the episode's state
+(position and elapsed steps) to read before such a loop runs and to write back after it,
+so that ``env.step`` goes on from where the loop stopped.
+
+Gymnasium's own wrappers keep their meaning: the limit of a ``TimeLimit`` applies, and its
+count of elapsed steps is the one read and written. Those counts are private attributes of
+Gymnasium's wrappers; this module is the one place in avq that touches them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
+
+from avq.envs.grid_maze import GridDynamics, GridMaze
+from avq.envs.robot_maze import RobotDynamics, RobotMaze
+
+__all__ = ["CompiledMaze", "compiled_maze", "NO_LIMIT"]
+
+#: The step limit of an episode that nothing truncates.
+NO_LIMIT = 1 << 62
+
+
+@dataclass(frozen=True)
+class CompiledMaze:
+    """A maze environment seen by a loop that runs its dynamics itself.
+
+    Attributes:
+        maze: the maze (``env.unwrapped``).
+        dynamics: ``maze.dynamics``.
+        max_episode_steps: the step limit in force: the ``TimeLimit``'s, and for RobotMaze
+            also its own ``max_steps`` (the smaller); :data:`NO_LIMIT` without either.
+    """
+
+    maze: GridMaze | RobotMaze
+    dynamics: GridDynamics | RobotDynamics
+    max_episode_steps: int
+    _time_limit: TimeLimit | None
+    _order: OrderEnforcing | None
+
+    @property
+    def np_random(self) -> np.random.Generator:
+        """The maze's generator, from which ``reset`` draws the starts."""
+        return self.maze.np_random
+
+    def episode_state(self) -> tuple[float, float, int]:
+        """The robot's position and the steps elapsed in the current episode (by the ``TimeLimit``'s
+        count where there is one)."""
+        x, y = self.maze.position
+        if self._time_limit is not None:
+            elapsed = self._time_limit._elapsed_steps or 0
+        elif isinstance(self.maze, RobotMaze):
+            elapsed = self.maze.elapsed_steps
+        else:
+            elapsed = 0
+        return x, y, int(elapsed)
+
+    def set_episode_state(self, x: float, y: float, elapsed: int) -> None:
+        """Put the robot at ``(x, y)``, ``elapsed`` steps into an episode that ``env.step`` continues."""
+        if isinstance(self.maze, RobotMaze):
+            self.maze.place(x, y, elapsed)
+        else:
+            self.maze.place(int(x), int(y))
+        if self._time_limit is not None:
+            self._time_limit._elapsed_steps = int(elapsed)
+        if self._order is not None:
+            self._order._has_reset = True  # the loop's episode was started by a reset of its own
+
+
+def compiled_maze(env: gym.Env) -> CompiledMaze | None:
+    """``env`` as a :class:`CompiledMaze`, if it is a :class:`GridMaze` or :class:`RobotMaze` (not a
+    subclass, which may step differently) under Gymnasium's standard wrappers only (``TimeLimit``,
+    ``OrderEnforcing``, ``PassiveEnvChecker``, at most one ``TimeLimit``); else None."""
+    time_limit = order = None
+    e = env
+    while isinstance(e, gym.Wrapper):
+        if isinstance(e, TimeLimit):
+            if time_limit is not None:
+                return None
+            time_limit = e
+        elif isinstance(e, OrderEnforcing):
+            order = e
+        elif not isinstance(e, PassiveEnvChecker):
+            return None
+        e = e.env
+    if type(e) not in (GridMaze, RobotMaze):
+        return None
+    limit = time_limit._max_episode_steps if time_limit is not None else NO_LIMIT
+    if isinstance(e, RobotMaze):
+        limit = min(limit, e.dynamics.max_steps)
+    return CompiledMaze(e, e.dynamics, int(limit), time_limit, order)
