@@ -39,7 +39,7 @@ AGENTS = ("avq", "avq-paper", "grid", "tiles")
 def run_one(task: str, agent: str, seed: int, episodes: int) -> dict:
     import avq
     from avq.evaluation import evaluate_policy
-    from avq.experiments import make_env
+    from avq.runs import make_env
 
     env_kwargs, _, overrides = TASKS[task]
     env = make_env(task, env_kwargs)
@@ -63,7 +63,7 @@ def run_one(task: str, agent: str, seed: int, episodes: int) -> dict:
 def mountain_car_check(seed: int, episodes: int = 50) -> float:
     """Tile-coding Sarsa(λ), 8 tilings, uncapped episodes: mean steps over the first 50 episodes."""
     import avq
-    from avq.experiments import make_env
+    from avq.runs import make_env
 
     env = make_env("MountainCar-v0", {"max_episode_steps": 5000})
     model = avq.make_agent("tiles", env, seed=seed, n_tilings=8).learn(total_episodes=episodes)

@@ -26,7 +26,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from avq.envs import random_layout
-from avq.experiments import train_maze_run
+from avq.reproduce import train_maze_run
 
 #: row label -> (registered agent, overrides). "avq" on the grid maze has the maze defaults.
 ROWS: dict[str, tuple[str, dict]] = {

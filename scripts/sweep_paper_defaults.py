@@ -18,7 +18,7 @@ import itertools
 import numpy as np
 from joblib import Parallel, delayed
 
-from avq.experiments import train_maze_run
+from avq.reproduce import train_maze_run
 
 SPACE = {
     "alpha": [0.05, 0.1, 0.2, 0.3, 0.5],

@@ -61,7 +61,7 @@ def test_train_with_timesteps_and_a_gymnasium_task(tmp_path):
     out = tmp_path / "mc"
     assert main(["train", "--env", "MountainCar-v0", "--agent", "avq-paper", "--timesteps", "450", "--out", str(out),
                  "--env-kwargs", "max_episode_steps=150", "--no-progress"]) == 0
-    model = avq.load(out / "model.zip", env=avq.experiments.make_env("MountainCar-v0", {"max_episode_steps": 150}))
+    model = avq.load(out / "model.zip", env=avq.runs.make_env("MountainCar-v0", {"max_episode_steps": 150}))
     assert model.num_timesteps == 450 and model.num_episodes == 3
 
 

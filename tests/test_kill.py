@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.experiments import train
+from avq.runs import train
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")
 

@@ -113,7 +113,7 @@ def test_a_run_written_before_an_option_existed_resumes_with_the_option_off(tmp_
     # the class's defaults for them (off), not the maze defaults of `avq` (cycle_split on).
     import yaml
 
-    from avq.experiments import resume_train, train
+    from avq.runs import resume_train, train
 
     out = tmp_path / "run"
     train("avq/GridMaze-v0", agent="avq", episodes=30, seed=1, out=out, checkpoint_every=10, progress=False,

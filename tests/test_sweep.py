@@ -230,7 +230,7 @@ def test_when_no_trial_succeeded_a_stale_figure_is_removed_and_not_claimed(tmp_p
 
 
 def test_sweeps_and_training_runs_keep_out_of_each_others_directories(local_run, tmp_path):
-    from avq.experiments import train
+    from avq.runs import train
 
     with pytest.raises(ValueError, match="holds a sweep"):
         train("avq/GridMaze-v0", "tabular", episodes=2, out=local_run[0], progress=False)

@@ -47,7 +47,7 @@ def _nonnegative_int(name: str):
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from avq.envs.layouts import load_layout
-    from avq.experiments import reproduce
+    from avq.reproduce import reproduce
 
     agents = [a.strip() for a in args.agents.split(",") if a.strip()]
     if not agents:
@@ -132,7 +132,7 @@ def _print_train_summary(summary: dict) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from avq.experiments import resume_train, train
+    from avq.runs import resume_train, train
 
     if args.resume:
         given = [flag for flag, value in (("--env", args.env), ("--agent", args.agent), ("--episodes", args.episodes),
@@ -168,7 +168,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             episodes = 500
     seed = args.seed if args.seed is not None else config.get("seed", 0)
     every = args.checkpoint_every or config.get("checkpoint_every") or 100
-    from avq.experiments import default_run_dir
+    from avq.runs import default_run_dir
 
     out = args.out or config.get("out") or str(default_run_dir(env_id, agent, seed))
     try:
@@ -201,7 +201,7 @@ def _interrupted(run_dir: str) -> int:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import json
 
-    from avq.experiments import evaluate_run
+    from avq.runs import evaluate_run
 
     report = evaluate_run(args.run_dir, episodes=args.episodes, seed=args.seed)
     if args.json:
