@@ -4,13 +4,12 @@ Sarsa(λ) on a growing and merging set of Voronoi cells (Lau, Mak & Lee, 2002).
 Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``).
 """
 
-__version__ = "0.1.0"
-
-from avq import envs  # noqa: E402,F401  (registers the environments)
-from avq.agents import AGENTS, AVQSarsa, BaseAgent, GridSarsa, TabularSarsa, TileSarsa, load, make_agent  # noqa: E402
-from avq.evaluation import evaluate_maze  # noqa: E402
-from avq.quantizer import Codebook  # noqa: E402
-from avq.sweep import sweep  # noqa: E402
+from avq._version import __version__
+from avq import envs  # noqa: F401  (registers the environments)
+from avq.agents import AGENTS, AVQSarsa, BaseAgent, GridSarsa, TabularSarsa, TileSarsa, load, make_agent
+from avq.evaluation import evaluate_maze
+from avq.quantizer import Codebook
+from avq.sweep import sweep
 
 __all__ = [
     "AVQSarsa",
