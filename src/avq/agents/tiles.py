@@ -8,8 +8,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._validate import check_int, check_int_or_ints, check_per_dimension, check_sarsa_params
 from avq.agents._td import epsilon_greedy, sarsa_lambda_update, sarsa_td_error
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params, episode_record
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.tilecoding import TileCoder
 
@@ -129,16 +130,12 @@ class TileSarsa(BaseAgent):
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.n_tilings = check_int("n_tilings", n_tilings, 1)
-        self.tiles_per_dim = _check_tiles_per_dim(tiles_per_dim)
+        self.tiles_per_dim = check_int_or_ints("tiles_per_dim", tiles_per_dim)
         self.iht_size = check_int("iht_size", iht_size, 1)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-        n = self._low.shape[0]
-        if isinstance(self.tiles_per_dim, list) and len(self.tiles_per_dim) != n:
-            raise ValueError(
-                f"tiles_per_dim must be an int or {n} ints (one per observation dimension), not {self.tiles_per_dim!r}"
-            )
+        check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
         if self.iht_size < self.n_tilings:
             raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
 
@@ -235,14 +232,3 @@ class TileSarsa(BaseAgent):
             raise ValueError(f"weights of shape {w.shape} do not fit ({self.iht_size}, {self.n_actions})")
         self._coder.restore(arrays["tiles"], int(meta["overflows"]))
         self._w[:] = w
-
-
-def _check_tiles_per_dim(value: Any) -> int | list[int]:
-    def ok(v: Any) -> bool:
-        return not isinstance(v, bool) and isinstance(v, (int, np.integer)) and v >= 1
-
-    if ok(value):
-        return int(value)
-    if isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0 and all(ok(v) for v in value):
-        return [int(v) for v in value]
-    raise ValueError(f"tiles_per_dim must be an integer >= 1 or a sequence of them (one per dimension), not {value!r}")
