@@ -7,7 +7,12 @@ shared and noisy), plus the absolute number:
    minimal hand-written Numba tabular Sarsa(λ) with the maze inside the loop
    (:func:`reference_steps_per_second`, the practical speed limit for this work);
 2. the generic path (AVQ stepping a Gymnasium environment from Python) against a
-   loop that only steps the same environment with pre-drawn random actions;
+   loop that only steps the same environment with pre-drawn random actions, on classic
+   tasks and on ``bench/CopyMaze-v0``: ``lau2002`` under an id avq does not know (a
+   subclass of GridMaze, so nothing is fused), a fast env on which the agent's own work
+   per step shows (the ratio, and the agent's µs per step: 1/agent - 1/env-only);
+2b. ε-greedy: the fused loops call the one compiled ``epsilon_greedy`` (inlined) where an
+   earlier version wrote the draws out by hand; both timed on the same loop;
 3. nearest-vector queries inside a compiled loop, 20 to 20,000 vectors, brute force
    against the k-d tree (``scipy.spatial.cKDTree``) the codebook uses for batches;
 4. ``avq reproduce`` with its defaults, process start to files written, warm cache;
@@ -32,8 +37,16 @@ from numba import njit
 
 import avq
 from avq._kernels import nearest_index
-from avq.envs.grid_maze import grid_move
+from avq.agents._td import epsilon_greedy, greedy_ties, nth_tie
+from avq.envs.grid_maze import GridMaze, grid_move
 from avq.envs.layouts import load_layout
+
+
+class CopyMaze(GridMaze):
+    """``lau2002`` as a plain copy under another id: avq does not know it, so nothing is fused."""
+
+
+gym.register("bench/CopyMaze-v0", entry_point=CopyMaze, max_episode_steps=100)
 
 
 @njit(cache=True)
@@ -126,6 +139,53 @@ def generic_steps_per_second(name: str, env_id: str, n_steps: int) -> float:
     return n_steps / (time.perf_counter() - t)
 
 
+def paired_generic(name: str, env_id: str, n_steps: int, reps: int = 5) -> tuple[float, float]:
+    """Best of ``reps`` alternating runs of env-only and the agent (the machine is shared and noisy)."""
+    base = agent = 0.0
+    for _ in range(reps):
+        base = max(base, env_only_steps_per_second(env_id, n_steps))
+        agent = max(agent, generic_steps_per_second(name, env_id, n_steps))
+    return agent, base
+
+
+@njit(cache=True)
+def _decisions_shared(rng, q, n, eps):
+    s = 0
+    for k in range(n):
+        s += epsilon_greedy(rng, q, k % q.shape[0], eps)
+    return s
+
+
+@njit(cache=True)
+def _decisions_by_hand(rng, q, n, eps):
+    s = 0
+    for k in range(n):
+        row = k % q.shape[0]
+        if rng.random() < eps:
+            a = rng.integers(0, q.shape[1])
+        else:
+            a, n_ties = greedy_ties(q, row)
+            if n_ties > 1:
+                a = nth_tie(q, row, rng.integers(0, n_ties))
+        s += a
+    return s
+
+
+def decisions_per_second(n: int = 2_000_000) -> tuple[float, float]:
+    """ε-greedy decisions per second: the shared helper against the same draws written out by hand."""
+    q = np.random.default_rng(0).integers(0, 3, size=(64, 4)).astype(np.float64)  # many ties
+    out = []
+    for fn in (_decisions_shared, _decisions_by_hand):
+        fn(np.random.default_rng(0), q, 1000, 0.1)
+        best = 0.0
+        for rep in range(3):
+            t = time.perf_counter()
+            fn(np.random.default_rng(rep), q, n, 0.1)
+            best = max(best, n / (time.perf_counter() - t))
+        out.append(best)
+    return out[0], out[1]
+
+
 @njit(cache=True)
 def _nearest_loop(vectors, size, queries, inv_scale):
     s = 0
@@ -176,13 +236,18 @@ def main() -> None:
         print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
 
     print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")
-    print(f"   {'env':<16} {'agent':<10} {'k steps/s':>10} {'env only':>10} {'ratio':>6}")
+    print(f"   {'env':<18} {'agent':<10} {'k steps/s':>10} {'env only':>10} {'ratio':>6} {'agent µs/step':>14}")
     n = int(100_000 * scale)
-    for env_id, name in (("MountainCar-v0", "avq"), ("MountainCar-v0", "tiles"), ("MountainCar-v0", "grid"),
-                         ("avq/RobotMaze-v0", "avq")):
-        base = env_only_steps_per_second(env_id, n)
-        sps = generic_steps_per_second(name, env_id, n)
-        print(f"   {env_id:<16} {name:<10} {sps / 1e3:>10.1f} {base / 1e3:>10.1f} {sps / base:>6.0%}")
+    for env_id, name in (("bench/CopyMaze-v0", "avq-paper"), ("bench/CopyMaze-v0", "avq"),
+                         ("bench/CopyMaze-v0", "tabular"), ("MountainCar-v0", "avq"), ("MountainCar-v0", "tiles"),
+                         ("MountainCar-v0", "grid"), ("avq/RobotMaze-v0", "avq")):
+        sps, base = paired_generic(name, env_id, n, reps=3 if args.quick else 5)
+        work = (1 / sps - 1 / base) * 1e6
+        print(f"   {env_id:<18} {name:<10} {sps / 1e3:>10.1f} {base / 1e3:>10.1f} {sps / base:>6.0%} {work:>14.2f}")
+
+    shared, by_hand = decisions_per_second(int(2_000_000 * scale))
+    print(f"\n2b. ε-greedy in compiled loops: shared helper {shared / 1e6:.1f} M decisions/s, written out by hand "
+          f"{by_hand / 1e6:.1f} M ({shared / by_hand:.0%})")
 
     print("\n3. nearest vector, µs per query (2-D): brute force in a compiled loop vs k-d tree batch query")
     print(f"   {'vectors':>8} {'brute':>8} {'k-d tree':>9}")

@@ -323,3 +323,49 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert agent_defaults("avq", "CartPole-v1") == AGENTS["avq"][1]
     with pytest.raises(ValueError, match="unknown agent 'nope'"):
         agent_defaults("nope")
+
+
+def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_values_in_force():
+    from avq.agents.registry import AGENTS, DEFAULTS, TASK_DEFAULTS, defaults_key
+
+    maze = make_agent("avq", "avq/GridMaze-v0", seed=0)
+    used = maze.defaults_used
+    assert (used.name, used.env_id, used.key, used.explicit) == ("avq", "avq/GridMaze-v0", "avq/GridMaze-v0", {})
+    assert str(used) == ("agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
+                         "(avq.agents.registry.DEFAULTS['avq']['avq/GridMaze-v0']); explicit: none")
+    entry = DEFAULTS["avq"]["avq/GridMaze-v0"]
+    assert {k: maze.get_params()[k] for k in entry} == entry
+    general = make_agent("avq", "MountainCar-v0", alpha=0.2)
+    assert general.defaults_used.key == "*" and general.defaults_used.explicit == {"alpha": 0.2}
+    assert str(general.defaults_used).endswith("DEFAULTS['avq']['*']); explicit: alpha=0.2")
+    assert general.get_params()["alpha"] == 0.2 and general.get_params()["merge_age"] == 5
+    # scale=None is kept as given; the scale in force (the observation bounds') is scale_.
+    space = general.env.observation_space
+    assert general.get_params()["scale"] is None
+    assert np.array_equal(general.scale_, np.asarray(space.high, np.float64) - np.asarray(space.low, np.float64))
+    assert np.array_equal(maze.scale_, [1.0, 1.0]) and maze.get_params()["scale"] == 1.0
+    assert AVQSarsa("avq/GridMaze-v0").defaults_used is None  # built directly: the signature's defaults
+    assert defaults_key("avq", "CartPole-v1") == "*" and defaults_key("tabular", "avq/GridMaze-v0") == "*"
+    # One table: AGENTS and TASK_DEFAULTS hold DEFAULTS' own entries.
+    for name, table in DEFAULTS.items():
+        assert AGENTS[name][1] is table["*"]
+    assert TASK_DEFAULTS == {"avq": {k: v for k, v in DEFAULTS["avq"].items() if k != "*"}}
+
+
+def test_validators_name_the_parameter_and_the_value():
+    from avq._validate import check_bool, check_choice, check_int, check_optional, check_range
+
+    assert check_range("alpha", 1, 0.0, 1.0, low_open=True) == 1.0
+    assert check_optional(check_int, "seed", None, 0) is None and check_optional(check_int, "seed", 3, 0) == 3
+    for call, message in (
+        (lambda: check_range("alpha", 0.0, 0.0, 1.0, low_open=True), r"alpha must be in \(0.0, 1.0\], not 0.0"),
+        (lambda: check_range("rho", "x", 0.0, np.inf), r"rho must be a number in \[0.0, inf\], not 'x'"),
+        (lambda: check_int("max_cells", True, 1), "max_cells must be an integer >= 1, not True"),
+        (lambda: check_bool("fused", 1), "fused must be True or False, not 1"),
+        (lambda: check_choice("traces", "x", ("replacing", "accumulating")),
+         "traces must be 'replacing' or 'accumulating', not 'x'"),
+        (lambda: check_choice("merge_pairs", "x", ("a", "b", "c")), "merge_pairs must be one of 'a', 'b', 'c', not 'x'"),
+        (lambda: check_optional(check_int, "seed", -1, 0), "seed must be an integer >= 0 or None, not -1"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            call()

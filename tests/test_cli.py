@@ -88,3 +88,16 @@ def test_console_script_is_installed():
     exe = shutil.which("avq") or str(Path(sys.executable).parent / "avq")
     proc = subprocess.run([exe, "--version"], capture_output=True, text=True)
     assert proc.returncode == 0 and proc.stdout.startswith("avq ")
+
+
+def test_version_is_the_installed_distributions():
+    from importlib import metadata
+
+    import avq
+    from avq._version import __version__
+
+    try:
+        installed = metadata.version("avq")
+    except metadata.PackageNotFoundError:
+        pytest.skip("avq is not installed")
+    assert avq.__version__ == __version__ == installed

@@ -47,6 +47,19 @@ def test_train_writes_the_run_directory_and_evaluate_reads_it(tmp_path, capsys):
     assert "return" in capsys.readouterr().out
 
 
+def test_train_says_which_defaults_it_took(tmp_path, capsys):
+    assert main(["train", "--env", "avq/GridMaze-v0", "--episodes", "3", "--out", str(tmp_path / "maze"),
+                 "--no-progress"]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == (
+        "agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
+        "(avq.agents.registry.DEFAULTS['avq']['avq/GridMaze-v0']); explicit: none")
+    assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "alpha=0.2", "--out",
+                 str(tmp_path / "car"), "--no-progress"]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == (
+        "agent avq on MountainCar-v0: the general defaults of avq (avq.agents.registry.DEFAULTS['avq']['*']); "
+        "explicit: alpha=0.2")
+
+
 def test_rerunning_from_config_gives_the_same_model(tmp_path):
     first = tmp_path / "a"
     assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "20", "--out",

@@ -4,12 +4,11 @@ Sarsa(λ) on a growing and merging set of Voronoi cells (Lau, Mak & Lee, 2002).
 Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``).
 """
 
-__version__ = "0.1.0"
-
-from avq import envs  # noqa: E402,F401  (registers the environments)
-from avq.agents import AGENTS, AVQSarsa, BaseAgent, GridSarsa, TabularSarsa, TileSarsa, load, make_agent  # noqa: E402
-from avq.evaluation import evaluate_maze  # noqa: E402
-from avq.quantizer import Codebook  # noqa: E402
+from avq._version import __version__
+from avq import envs  # noqa: F401  (registers the environments)
+from avq.agents import AGENTS, AVQSarsa, BaseAgent, GridSarsa, TabularSarsa, TileSarsa, load, make_agent
+from avq.evaluation import evaluate_maze
+from avq.quantizer import Codebook
 
 # Imported here, not lazily through a module-level __getattr__ (PEP 562): ``avq.sweep`` names both this
 # function and the subpackage avq/sweep/, and the import system sets the attribute ``avq.sweep`` to the
@@ -18,7 +17,7 @@ from avq.quantizer import Codebook  # noqa: E402
 # subpackage is loaded before anything can import it, and ``avq.sweep`` stays the function. The price is
 # small: avq/sweep/ imports only the standard library, NumPy and avq._io at load time (joblib, Ray, Dask,
 # YAML, tqdm and Matplotlib inside the functions that use them), about 3 ms of the ~0.4 s of ``import avq``.
-from avq.sweep import sweep  # noqa: E402
+from avq.sweep import sweep
 
 __all__ = [
     "AVQSarsa",

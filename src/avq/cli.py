@@ -174,7 +174,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     try:
         summary = train(
             env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
-            env_kwargs=env_kwargs, out=out, progress=not args.no_progress, checkpoint_every=every,
+            env_kwargs=env_kwargs, out=out, progress=not args.no_progress, checkpoint_every=every, log=print,
         )
     except KeyboardInterrupt:
         return _interrupted(out)

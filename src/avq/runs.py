@@ -50,6 +50,7 @@ def train(
     out: str | os.PathLike | None = None,
     progress: bool = True,
     checkpoint_every: int = 100,
+    log: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Train one agent on one environment and write the run directory.
 
@@ -57,6 +58,7 @@ def train(
     ``progress.csv`` (one row per episode) and ``checkpoint.zip`` every
     ``checkpoint_every`` episodes (so that :func:`resume_train` can continue a
     stopped run exactly), then ``model.zip`` and ``summary.json``. Returns the summary.
+    ``log`` gets one line before training: which defaults the agent took (``agent.defaults_used``).
     """
     import yaml
 
@@ -91,6 +93,8 @@ def train(
         "avq_version": __version__,
     }
     atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
+    if log is not None:
+        log(str(model.defaults_used))
     return _run_to_the_end(model, out, config, progress)
 
 

@@ -36,6 +36,8 @@ from typing import Sequence
 
 import numpy as np
 
+from avq._validate import check_int
+
 __all__ = ["TileCoder", "tile_hash"]
 
 _MASK64 = (1 << 64) - 1
@@ -97,12 +99,8 @@ class TileCoder:
         if not np.issubdtype(tpd.dtype, np.integer) or np.any(tpd < 1):
             raise ValueError(f"tiles_per_dim must be an integer >= 1 or one per dimension, not {tiles_per_dim!r}")
         self.tiles_per_dim = tpd.astype(np.int64)
-        if isinstance(n_tilings, bool) or not isinstance(n_tilings, (int, np.integer)) or n_tilings < 1:
-            raise ValueError(f"n_tilings must be an integer >= 1, not {n_tilings!r}")
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-            raise ValueError(f"size must be an integer >= 1, not {size!r}")
-        self.n_tilings = int(n_tilings)
-        self.size = int(size)
+        self.n_tilings = check_int("n_tilings", n_tilings, 1)
+        self.size = check_int("size", size, 1)
         # Observation -> tile units (one tile = 1) -> units of 1/n_tilings of a tile.
         self._to_units = self.tiles_per_dim / (self.high - self.low) * self.n_tilings
         # tiles3: tiling t is displaced by t * (2d + 1) / n_tilings tiles along dimension d.

@@ -66,27 +66,15 @@ class TableSarsa(BaseAgent):
         self._ep_action = int(decide(self._draws.src, self._q, self._ep_row, self.epsilon))
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env, draws = self.env, self._draws
-        s, a = self._ep_row, self._ep_action
-        replacing = self.traces == "replacing"
-        n = 0
-        ended = False
-        while n < max_steps:
-            obs, r, terminated, truncated, _ = env.step(a)
-            n += 1
-            self._check_finite(obs, r, self._ep_steps + n)
-            r = float(r)
-            self._ep_return += r
+        draws, replacing = self._draws, self.traces == "replacing"
+
+        def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:
             s2 = self._row(obs)
             draws.reserve(_DRAWS)
-            a = int(table_step(draws.src, self._q, self._e, self._act, s, a, r, s2, bool(terminated), self.epsilon,
-                               self.alpha, self.gamma, self.lam, replacing))
-            s = s2
-            if terminated or truncated:
-                ended = True
-                break
-        self._ep_row, self._ep_action = s, a
-        self._ep_steps += n
+            return s2, int(table_step(draws.src, self._q, self._e, self._act, s, a, r, s2, terminated,
+                                      self.epsilon, self.alpha, self.gamma, self.lam, replacing))
+
+        self._ep_row, self._ep_action, n, ended = self._sarsa_steps(max_steps, self._ep_row, self._ep_action, update)
         return n, ended
 
     def _end_episode(self) -> EpisodeRecord:

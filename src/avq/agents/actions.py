@@ -29,16 +29,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
-from avq.agents.base import (
-    BaseAgent,
-    EpisodeRecord,
+from avq._validate import (
+    check_bool,
     check_int,
+    check_int_or_ints,
+    check_per_dimension,
     check_range,
     check_sarsa_params,
-    episode_record,
 )
-from avq.agents.tiles import _check_tiles_per_dim, advance_tile_sarsa
+from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.tiles import advance_tile_sarsa
 from avq.tilecoding import TileCoder
 
 __all__ = ["ActionCodebookSarsa", "gabriel_neighbours", "merged_vector", "plan_growth", "plan_merges",
@@ -222,25 +223,19 @@ class ActionCodebookSarsa(BaseAgent):
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.init_actions = check_int("init_actions", init_actions, 1)
-        if not isinstance(fixed, (bool, np.bool_)):  # a bad parameter is a ValueError, as everywhere in avq
-            raise ValueError(f"fixed must be True or False, not {fixed!r}")  # noqa: TRY004
-        self.fixed = bool(fixed)
+        self.fixed = check_bool("fixed", fixed)
         self.max_actions = check_int("max_actions", max_actions, 2)
         self.adapt_every = check_int("adapt_every", adapt_every, 1)
         self.d_min = check_range("d_min", d_min, 0.0, 1.0, low_open=True)
         self.rho = check_range("rho", rho, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.n_tilings = check_int("n_tilings", n_tilings, 1)
-        self.tiles_per_dim = _check_tiles_per_dim(tiles_per_dim)
+        self.tiles_per_dim = check_int_or_ints("tiles_per_dim", tiles_per_dim)
         self.iht_size = check_int("iht_size", iht_size, 1)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-        n = self._low.shape[0]
-        if isinstance(self.tiles_per_dim, list) and len(self.tiles_per_dim) != n:
-            raise ValueError(
-                f"tiles_per_dim must be an int or {n} ints (one per observation dimension), not {self.tiles_per_dim!r}"
-            )
+        check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
         if self.iht_size < self.n_tilings:
             raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
         box = self.env.action_space

@@ -9,10 +9,11 @@ import numpy as np
 from gymnasium import spaces
 from numba.core.errors import TypingError
 
+from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record, check_int, check_range, check_sarsa_params
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
 __all__ = ["AVQSarsa"]
@@ -113,9 +114,12 @@ class AVQSarsa(BaseAgent):
     The defaults are those of ``make_agent("avq-paper")`` except the metric: the
     class scales by the observation bounds (so ``d_min = 0.05`` is 5% of each
     range), while ``avq-paper`` uses the paper's plain Euclidean distance
-    (``scale=1``, ``d_min=1`` grid unit).
+    (``scale=1``, ``d_min=1`` grid unit). The named agents' defaults, those documented
+    and measured, are in one table, :data:`avq.agents.registry.DEFAULTS`.
 
     Attributes:
+        scale_: ``(n,)`` the metric's scale in force (``scale`` resolved; ``get_params()``
+            keeps ``scale`` as given, None included).
         codebook_: ``(p, n)`` codebook vectors.
         q_: ``(p, m)`` action values of the cells.
         n_cells: ``p``.
@@ -168,12 +172,8 @@ class AVQSarsa(BaseAgent):
         self.chi = check_range("chi", chi, -np.inf, 0.0, low_open=True, high_open=True)
         self.merge_every = check_int("merge_every", merge_every, 0)
         self.merge_age = check_int("merge_age", merge_age, 0)
-        if not isinstance(merge_same_action, (bool, np.bool_)):
-            raise ValueError(f"merge_same_action must be True or False, not {merge_same_action!r}")
-        self.merge_same_action = bool(merge_same_action)
-        if merge_pairs not in _MERGE_PAIRS:
-            raise ValueError(f"merge_pairs must be one of {', '.join(map(repr, _MERGE_PAIRS))}, not {merge_pairs!r}")
-        self.merge_pairs = merge_pairs
+        self.merge_same_action = check_bool("merge_same_action", merge_same_action)
+        self.merge_pairs = check_choice("merge_pairs", merge_pairs, _MERGE_PAIRS)
         self.epsilon_decay = check_range("epsilon_decay", epsilon_decay, 0.0, 1.0, low_open=True)
         self.epsilon_min = check_range("epsilon_min", epsilon_min, 0.0, 1.0)
         self.alpha_decay = check_range("alpha_decay", alpha_decay, 0.0, 1.0, low_open=True)
@@ -184,29 +184,16 @@ class AVQSarsa(BaseAgent):
             if decay < 1.0 and floor > start:
                 raise ValueError(f"{name}_min ({floor}) must not exceed {name} ({start}): the schedule decays "
                                  f"from {name} down to {name}_min")
-        if not isinstance(collision_split, (bool, np.bool_)):
-            raise ValueError(f"collision_split must be True or False, not {collision_split!r}")
-        self.collision_split = bool(collision_split)
-        if not isinstance(cycle_split, (bool, np.bool_)):
-            raise ValueError(f"cycle_split must be True or False, not {cycle_split!r}")
-        self.cycle_split = bool(cycle_split)
+        self.collision_split = check_bool("collision_split", collision_split)
+        self.cycle_split = check_bool("cycle_split", cycle_split)
         self.adapt_rate = check_range("adapt_rate", adapt_rate, 0.0, 1.0, high_open=True)
         self.prune_after = check_int("prune_after", prune_after, 0)
-        if not isinstance(make_room, (bool, np.bool_)):
-            raise ValueError(f"make_room must be True or False, not {make_room!r}")
-        self.make_room = bool(make_room)
-        self.value_trigger = (
-            None if value_trigger is None
-            else check_range("value_trigger", value_trigger, 0.0, np.inf, low_open=True, high_open=True)
-        )
-        self.reward_trigger = (
-            None if reward_trigger is None
-            else check_range("reward_trigger", reward_trigger, 0.0, np.inf, low_open=True, high_open=True)
-        )
+        self.make_room = check_bool("make_room", make_room)
+        positive = dict(low=0.0, high=np.inf, low_open=True, high_open=True)
+        self.value_trigger = check_optional(check_range, "value_trigger", value_trigger, **positive)
+        self.reward_trigger = check_optional(check_range, "reward_trigger", reward_trigger, **positive)
         self.max_cells = check_int("max_cells", max_cells, 1)
-        if not isinstance(fused, (bool, np.bool_)):
-            raise ValueError(f"fused must be True or False, not {fused!r}")
-        self.fused = bool(fused)
+        self.fused = check_bool("fused", fused)
         self.scale = scale
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
@@ -215,6 +202,12 @@ class AVQSarsa(BaseAgent):
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete("AVQSarsa", obs_space, act_space, "there is nothing to quantize")
+
+    @property
+    def scale_(self) -> np.ndarray:
+        """The metric's scale in force, one number per dimension: ``scale``, or with ``scale=None`` the
+        ``high - low`` of the observation bounds (``obs_bounds`` or the space's)."""
+        return self._scale.copy()
 
     def _resolve_scale(self, scale: Any, obs_bounds: Any) -> np.ndarray:
         space = self.env.observation_space

@@ -1,37 +1,35 @@
 """What every avq agent shares: parameters, seeding, the ``learn`` budget loop,
-episode records, ``predict`` plumbing and saving.
+episode records and ``predict`` plumbing.
 
 An agent subclass implements the learning itself in three methods:
 ``_setup()`` (allocate learned state), ``_begin_episode()`` and
-``_advance(max_steps)`` (run primitive steps of the current episode).
+``_advance(max_steps)`` (run primitive steps of the current episode). The model
+file that ``save`` writes and ``load`` reads is in :mod:`avq.agents.save_util`;
+the checks of the hyper-parameters are in :mod:`avq._validate`.
 """
 
 from __future__ import annotations
 
 import inspect
-import io
-import json
 import math
 import os
 import time
-import zipfile
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, ClassVar
+from typing import Any, Callable, ClassVar, Iterable
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._io import ProgressLog, atomic_write_bytes
+from avq._io import ProgressLog
 from avq._random import RawStream
 from avq.agents._td import decide
 from avq.agents._history import EpisodeHistory
+from avq._validate import check_bool, check_int, check_optional
+from avq._validate import check_range, check_sarsa_params  # noqa: F401  (importable from here as before)
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
-
-FORMAT_VERSION = 2
-#: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
-_READABLE_VERSIONS = (1, 2)
 
 #: One row of the per-episode record.
 EpisodeRecord = dict[str, Any]
@@ -68,69 +66,6 @@ def _make_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
     return env
 
 
-def check_range(name: str, value: Any, low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> float:
-    """Return ``value`` as a float if it lies in the interval, else raise a ``ValueError`` naming it."""
-    lb = "(" if low_open else "["
-    rb = ")" if high_open else "]"
-    interval = f"{lb}{low}, {high}{rb}"
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number in {interval}, not {value!r}")
-    v = float(value)
-    ok = np.isfinite(v) or (v == high and high == np.inf)
-    ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
-    if not ok:
-        raise ValueError(f"{name} must be in {interval}, not {value!r}")
-    return v
-
-
-def check_int(name: str, value: Any, low: int, *, allow_none: bool = False) -> int | None:
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        kind = f"an integer >= {low}" + (" or None" if allow_none else "")
-        raise ValueError(f"{name} must be {kind}, not {value!r}")
-    return int(value)
-
-
-def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: Any, q_init: Any, traces: Any) -> None:
-    """Check and store the hyper-parameters every Sarsa(λ) agent shares."""
-    agent.alpha = check_range("alpha", alpha, 0.0, 1.0, low_open=True)
-    agent.lam = check_range("lam", lam, 0.0, 1.0)
-    agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
-    agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
-    agent.q_init = check_range("q_init", q_init, -np.inf, np.inf, low_open=True, high_open=True)
-    if traces not in ("replacing", "accumulating"):
-        raise ValueError(f"traces must be 'replacing' or 'accumulating', not {traces!r}")
-    agent.traces = traces
-
-
-def _env_make_args(env: gym.Env) -> dict[str, Any] | None:
-    """The ``gymnasium.make`` arguments that rebuild ``env`` (its kwargs and step limit), if JSON can hold them."""
-    spec = getattr(env, "spec", None)
-    if spec is None:
-        return None
-    args = dict(spec.kwargs or {})
-    if spec.max_episode_steps is not None:
-        args["max_episode_steps"] = int(spec.max_episode_steps)
-    try:
-        return json.loads(json.dumps(args))
-    except (TypeError, ValueError):
-        return None
-
-
-def _space_to_json(space: spaces.Space) -> dict[str, Any]:
-    if isinstance(space, spaces.Discrete):
-        return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
-    if isinstance(space, spaces.Box):
-        return {
-            "type": "Box",
-            "shape": list(space.shape),
-            "low": np.asarray(space.low, dtype=np.float64).ravel().tolist(),
-            "high": np.asarray(space.high, dtype=np.float64).ravel().tolist(),
-        }
-    return {"type": type(space).__name__}
-
-
 class BaseAgent:
     """Base class of avq's agents (see :class:`avq.AVQSarsa` for the full API).
 
@@ -149,7 +84,7 @@ class BaseAgent:
 
     def __init__(self, env: gym.Env | str, seed: int | None) -> None:
         self.env = _make_env(env)
-        self.seed = check_int("seed", seed, 0, allow_none=True)
+        self.seed = check_optional(check_int, "seed", seed, 0)
         self._check_spaces(self.env.observation_space, self.env.action_space)
         if isinstance(self.env.action_space, spaces.Discrete):  # (agents for Box actions define their own)
             self.n_actions = int(self.env.action_space.n)
@@ -166,6 +101,8 @@ class BaseAgent:
         self._in_episode = False
         self._wall_s = 0.0
         self._is_setup = False
+        #: Which defaults :func:`avq.make_agent` gave this agent (a ``DefaultsUsed``); None when built directly.
+        self.defaults_used: Any = None
 
     # -- parameters (scikit-learn style) ----------------------------------------------
     @classmethod
@@ -174,7 +111,13 @@ class BaseAgent:
         return [p for p in sig.parameters if p not in ("self", "env")]
 
     def get_params(self) -> dict[str, Any]:
-        """The constructor's hyper-parameters, read from its signature."""
+        """The constructor's hyper-parameters, read from its signature.
+
+        The values as given, checked and in plain form (floats, lists): the values in
+        force unless a parameter leaves something to the environment, such as
+        ``AVQSarsa``'s ``scale=None`` (the observation bounds; ``scale_`` holds the
+        resolved scale) or ``obs_bounds=None`` (the space's bounds).
+        """
         return {name: getattr(self, name) for name in self._param_names()}
 
     def __repr__(self) -> str:
@@ -209,6 +152,31 @@ class BaseAgent:
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         raise NotImplementedError
+
+    def _sarsa_steps(self, max_steps: int, s: Any, a: int, update: Callable[[Any, int, float, Any, bool], tuple],
+                     env_actions: np.ndarray | None = None) -> tuple[Any, int, int, bool]:
+        """The primitive steps of an agent that decides at every step (``tabular``, ``grid``, the tile coders).
+
+        Steps the environment with action ``a`` (sent as ``env_actions[a]`` if given) at most
+        ``max_steps`` times, refusing a reward or observation that is not finite, and adds the
+        rewards to ``_ep_return``; ``update(s, a, r, obs, terminated)`` learns the step and returns the
+        next ``(s, a)``. Returns ``(s, a, steps, episode ended)``; ``_ep_steps`` counts the steps.
+        """
+        env = self.env
+        n = 0
+        ended = False
+        while n < max_steps:
+            obs, r, terminated, truncated, _ = env.step(a if env_actions is None else env_actions[a])
+            n += 1
+            self._check_finite(obs, r, self._ep_steps + n)
+            r = float(r)
+            self._ep_return += r
+            s, a = update(s, a, r, obs, bool(terminated))
+            if terminated or truncated:
+                ended = True
+                break
+        self._ep_steps += n
+        return s, a, n, ended
 
     def _decide(self, values: np.ndarray) -> int:
         """ε-greedy over one profile of action values (:func:`avq.agents._td.epsilon_greedy`), drawn
@@ -269,8 +237,8 @@ class BaseAgent:
             raise TypeError("callback must be callable as callback(agent, record)")
         if (checkpoint_every is None) != (checkpoint_dir is None):
             raise ValueError("give checkpoint_every and checkpoint_dir together")
-        every = None if checkpoint_every is None else int(check_int("checkpoint_every", checkpoint_every, 1))
-        checkpoint = None
+        every = None if checkpoint_every is None else check_int("checkpoint_every", checkpoint_every, 1)
+        checkpoint = log = None
         if checkpoint_dir is not None:
             checkpoint = Path(checkpoint_dir)
             if checkpoint.exists() and not checkpoint.is_dir():
@@ -286,84 +254,83 @@ class BaseAgent:
             total = total_episodes if total_episodes is not None else total_timesteps
             unit = "episode" if total_episodes is not None else "step"
             bar = tqdm(total=total, unit=unit, desc=type(self).__name__, leave=False)
-        steps_left = total_timesteps
-        episodes_left = total_episodes
-        t0 = time.perf_counter()
+        call = _LearnCall(total_timesteps, total_episodes, callback, bar, every, checkpoint, log,
+                          time.perf_counter())
         fused = self._fused_runner()
         try:
-            while (steps_left is None or steps_left > 0) and (episodes_left is None or episodes_left > 0):
+            while call.budget_left():
                 if fused is not None and (self._in_episode or self._env_seed is None):
-                    # Many steps and episodes in one compiled call (see AVQSarsa's fused loops).
-                    chunk = 1 if callback is not None else (64 if bar is not None else 1 << 16)
-                    budget = episodes_left if episodes_left is not None else 1 << 62
-                    if every is not None:  # stop at the next checkpoint
-                        budget = min(budget, every - self.num_episodes % every)
-                    n, rows, self._in_episode = fused(
-                        steps_left if steps_left is not None else 1 << 62, budget, chunk)
-                    self.num_timesteps += n
-                    if steps_left is not None:
-                        steps_left -= n
-                        if bar is not None:
-                            bar.update(n)
-                    elapsed = time.perf_counter() - t0
-                    t0 = time.perf_counter()
-                    # Wall time shared out over the chunk's episodes by their steps.
-                    wall = self._wall_s + elapsed * np.cumsum(rows[:, 0]) / max(n, 1)
-                    first = len(self.history_)
-                    self.history_.extend_block(self.num_episodes + 1, rows, wall)
-                    self.num_episodes += len(rows)
-                    self._wall_s += elapsed
-                    if episodes_left is not None:
-                        episodes_left -= len(rows)
-                        if bar is not None:
-                            bar.update(len(rows))
-                    stop = callback is not None and any(
-                        callback(self, self.history_[k]) is False for k in range(first, len(self.history_)))
-                    if every is not None and len(rows) and not self._in_episode and self.num_episodes % every == 0:
-                        self._checkpoint(checkpoint, log)
-                    if stop:
-                        break
-                    continue
-                if not self._in_episode:
-                    obs, _ = self.env.reset(seed=self._env_seed)
-                    self._env_seed = None  # seed once; later resets continue the env's stream
-                    self._begin_episode(obs)
-                    self._in_episode = True
-                n, ended = self._advance(steps_left if steps_left is not None else 1 << 62)
-                self.num_timesteps += n
-                if steps_left is not None:
-                    steps_left -= n
-                    if bar is not None:
-                        bar.update(n)
-                if ended:
-                    self._in_episode = False
-                    self.num_episodes += 1
-                    self._wall_s += time.perf_counter() - t0
-                    t0 = time.perf_counter()
-                    record = self._end_episode()
-                    record["episode"] = self.num_episodes
-                    record["wall_s"] = self._wall_s
-                    self.history_.append(record)
-                    if episodes_left is not None:
-                        episodes_left -= 1
-                        if bar is not None:
-                            bar.update(1)
-                    stop = callback is not None and callback(self, record) is False
-                    if every is not None and self.num_episodes % every == 0:
-                        self._checkpoint(checkpoint, log)
-                    if stop:
-                        break
+                    stop = self._learn_fused_chunk(fused, call)
+                else:
+                    stop = self._learn_python_step(call)
+                if stop:
+                    break
         finally:
-            self._wall_s += time.perf_counter() - t0
+            self._wall_s += call.lap()
             if bar is not None:
                 bar.close()
-        if checkpoint is not None:
+        if log is not None:
             log.sync(self.history_)  # the episodes after the last checkpoint too (a resume drops them again)
         return self
 
-    def _checkpoint(self, directory: Path, log: "ProgressLog") -> None:
-        log.sync(self.history_)
-        self.save(directory / "checkpoint.zip")
+    def _learn_fused_chunk(self, fused: Callable[[int, int, int], tuple[int, np.ndarray, bool]],
+                           call: "_LearnCall") -> bool:
+        """Many steps and episodes in one compiled call (see AVQSarsa's fused loops); True: the callback stops.
+
+        The chunk ends at the budget, at the next checkpoint, and after every episode
+        when there is a callback (64 episodes with a progress bar).
+        """
+        chunk = 1 if call.callback is not None else (64 if call.bar is not None else 1 << 16)
+        budget = call.episodes_left if call.episodes_left is not None else 1 << 62
+        if call.every is not None:  # stop at the next checkpoint
+            budget = min(budget, call.every - self.num_episodes % call.every)
+        n, rows, self._in_episode = fused(call.steps_left if call.steps_left is not None else 1 << 62, budget, chunk)
+        self.num_timesteps += n
+        call.count_steps(n)
+        elapsed = call.lap()
+        # Wall time shared out over the chunk's episodes by their steps.
+        wall = self._wall_s + elapsed * np.cumsum(rows[:, 0]) / max(n, 1)
+        first = len(self.history_)
+        self.history_.extend_block(self.num_episodes + 1, rows, wall)
+        self.num_episodes += len(rows)
+        self._wall_s += elapsed
+        return self._episodes_finished(call, len(rows), (self.history_[k] for k in range(first, len(self.history_))))
+
+    def _learn_python_step(self, call: "_LearnCall") -> bool:
+        """Step the environment from Python up to the end of the episode or of the step budget
+        (resetting it first between episodes); True: the callback stops."""
+        if not self._in_episode:
+            obs, _ = self.env.reset(seed=self._env_seed)
+            self._env_seed = None  # seed once; later resets continue the env's stream
+            self._begin_episode(obs)
+            self._in_episode = True
+        n, ended = self._advance(call.steps_left if call.steps_left is not None else 1 << 62)
+        self.num_timesteps += n
+        call.count_steps(n)
+        if not ended:
+            return False
+        self._in_episode = False
+        self.num_episodes += 1
+        self._wall_s += call.lap()
+        record = self._end_episode()
+        record["episode"] = self.num_episodes
+        record["wall_s"] = self._wall_s
+        self.history_.append(record)
+        return self._episodes_finished(call, 1, (record,))
+
+    def _episodes_finished(self, call: "_LearnCall", n: int, records: Iterable[EpisodeRecord]) -> bool:
+        """After ``n`` episodes were added to ``history_`` (``records``, which may be none): count them
+        against the budget and the bar, call the callback on each until one returns ``False``, and
+        checkpoint when an episode boundary falls on ``checkpoint_every``. True: the callback stops."""
+        if call.episodes_left is not None:
+            call.episodes_left -= n
+            if call.bar is not None:
+                call.bar.update(n)
+        stop = call.callback is not None and any(call.callback(self, record) is False for record in records)
+        if call.every is not None and n and not self._in_episode and self.num_episodes % call.every == 0:
+            call.log.sync(self.history_)  # (every, checkpoint and log are set together)
+            self.save(call.checkpoint / "checkpoint.zip")
+        return stop
 
     def episode_history(self) -> dict[str, np.ndarray]:
         """The per-episode records as columns (one array per field; empty before the first episode)."""
@@ -386,8 +353,7 @@ class BaseAgent:
         """
         if not self._is_setup:
             raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() before predict()")
-        if not isinstance(deterministic, (bool, np.bool_)):
-            raise ValueError(f"deterministic must be True or False, not {deterministic!r}")
+        check_bool("deterministic", deterministic)
         if isinstance(observation, tuple) and len(observation) == 2 and isinstance(observation[1], dict):
             raise ValueError("predict got an (observation, info) pair; pass the observation alone: obs, info = env.reset()")
         try:
@@ -457,36 +423,12 @@ class BaseAgent:
         """Save parameters (JSON) and learned arrays (``.npz``) in one zip file.
 
         Nothing is pickled. The file is written atomically. Returns the path written
-        (``.zip`` is appended when the path has no suffix).
+        (``.zip`` is appended when the path has no suffix). The format is described
+        in :mod:`avq.agents.save_util`.
         """
-        from avq import __version__
+        from avq.agents import save_util  # (it imports this module)
 
-        path = Path(path)
-        if path.is_dir() or not path.name:
-            raise ValueError(f"{path} is a directory; give a file name such as {path / 'model.zip'}")
-        if path.suffix == "":
-            path = path.with_suffix(".zip")
-        state, arrays = self._state_dict()
-        meta = {
-            "format": "avq-agent",
-            "format_version": FORMAT_VERSION,
-            "avq_version": __version__,
-            "class": type(self).__name__,
-            "params": self.get_params(),
-            "observation_space": _space_to_json(self.env.observation_space),
-            "action_space": _space_to_json(self.env.action_space),
-            "env_id": getattr(getattr(self.env, "spec", None), "id", None),
-            "env_make": _env_make_args(self.env),
-            "state": state,
-        }
-        buf = io.BytesIO()
-        np.savez(buf, **arrays)
-        out = io.BytesIO()
-        with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-            zf.writestr("meta.json", json.dumps(meta, indent=1))
-            zf.writestr("arrays.npz", buf.getvalue())
-        atomic_write_bytes(path, out.getvalue())
-        return path
+        return save_util.save(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike, env: gym.Env | str | None = None) -> "BaseAgent":
@@ -497,86 +439,39 @@ class BaseAgent:
         return agent
 
 
-def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    try:
-        with zipfile.ZipFile(path) as zf:
-            meta = json.loads(zf.read("meta.json").decode("utf-8"))
-            raw = zf.read("arrays.npz")
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no such model file") from None
-    except Exception as exc:  # noqa: BLE001  (a damaged file can fail anywhere in zipfile: BadZipFile, zlib.error,
-        # NotImplementedError for flags it cannot read, RuntimeError for encryption, struct or JSON errors...)
-        raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
-        raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
-    if meta.get("format_version") not in _READABLE_VERSIONS:
-        raise ValueError(
-            f"{path}: model format version {meta.get('format_version')} is not supported "
-            f"(this avq reads versions {', '.join(map(str, _READABLE_VERSIONS))})"
-        )
-    try:
-        with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
-    except Exception as exc:  # noqa: BLE001  (as above: any failure to parse is an unreadable file)
-        raise ValueError(f"{path}: the model's arrays are unreadable ({exc})") from None
-    for name, arr in arrays.items():
-        if arr.dtype.kind not in "biuf":
-            raise ValueError(f"{path}: array {name!r} has dtype {arr.dtype}; a model holds only numbers")
-        if arr.dtype.kind == "f" and not np.isfinite(arr).all():
-            raise ValueError(f"{path}: array {name!r} holds NaN or infinite values")
-    for key, kind in (("params", dict), ("state", dict), ("class", str)):
-        if not isinstance(meta.get(key), kind):
-            raise ValueError(f"{path}: the model's header has no valid {key!r}")
-    return meta, arrays
+@dataclass
+class _LearnCall:
+    """What one call of :meth:`BaseAgent.learn` carries from chunk to chunk: the budgets left, the
+    callback, the progress bar, the checkpoints, and the clock of the wall time not yet counted."""
+
+    steps_left: int | None
+    episodes_left: int | None
+    callback: Callback | None
+    bar: Any
+    every: int | None
+    checkpoint: Path | None
+    log: ProgressLog | None
+    t0: float
+
+    def budget_left(self) -> bool:
+        return ((self.steps_left is None or self.steps_left > 0)
+                and (self.episodes_left is None or self.episodes_left > 0))
+
+    def count_steps(self, n: int) -> None:
+        if self.steps_left is not None:
+            self.steps_left -= n
+            if self.bar is not None:
+                self.bar.update(n)
+
+    def lap(self) -> float:
+        """The seconds since the last lap (or the start); the clock starts again."""
+        elapsed = time.perf_counter() - self.t0
+        self.t0 = time.perf_counter()
+        return elapsed
 
 
 def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
-    """Load any avq agent saved with ``agent.save(path)``.
+    """Load any avq agent saved with ``agent.save(path)``: :func:`avq.agents.save_util.load`."""
+    from avq.agents import save_util  # (it imports this module)
 
-    Args:
-        path: The saved file.
-        env: The environment to attach. Without one, the environment is made from
-            the id stored in the file (which must be registered).
-
-    Raises:
-        ValueError: the file is not an avq model, is damaged, or its spaces do not
-            match ``env``'s.
-    """
-    path = Path(path)
-    if not path.exists() and path.suffix == "" and path.with_suffix(".zip").exists():
-        path = path.with_suffix(".zip")
-    meta, arrays = _read_model_file(path)
-    cls = _AGENT_CLASSES.get(meta.get("class", ""))
-    if cls is None:
-        raise ValueError(f"{path}: unknown agent class {meta.get('class')!r}")
-    if env is None:
-        if not meta.get("env_id"):
-            raise ValueError(f"{path}: the model records no environment id; pass env= to load it")
-        make = meta.get("env_make")
-        if meta.get("format_version", 1) >= 2 and make is None:
-            raise ValueError(f"{path}: the environment's gymnasium.make arguments could not be saved; "
-                             "pass env= to load it")
-        try:
-            env = _make_env(meta["env_id"], **(make or {}))
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}; pass env= to load it") from None
-    params = dict(meta["params"])
-    env = _make_env(env)
-    for key in ("observation_space", "action_space"):
-        want = meta.get(key)
-        have = _space_to_json(getattr(env, key))
-        if want != have:
-            raise ValueError(f"{path}: the model was saved for {key} {want}, but env has {have}")
-    try:
-        agent = cls(env, **params)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: the saved parameters are not valid for {cls.__name__} ({exc})") from None
-    agent._setup()
-    agent._is_setup = True
-    if meta["format_version"] >= 2 and "history" not in arrays:
-        raise ValueError(f"{path}: the model's state is incomplete (no history array)")
-    try:
-        agent._load_state_dict(meta["state"], arrays)
-    except (KeyError, ValueError, IndexError, TypeError, AttributeError) as exc:
-        raise ValueError(f"{path}: the model's state is incomplete or inconsistent ({exc})") from None
-    return agent
+    return save_util.load(path, env=env)

@@ -9,8 +9,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._validate import check_int_or_ints, check_per_dimension, check_sarsa_params
 from avq.agents._table import TableSarsa
-from avq.agents.base import check_sarsa_params
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 
 __all__ = ["GridSarsa"]
@@ -80,17 +80,12 @@ class GridSarsa(TableSarsa):
         seed: int | None = None,
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
-        self.bins = _check_bins(bins)
+        self.bins = check_int_or_ints("bins", bins)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
         n = self._low.shape[0]
-        if isinstance(self.bins, int):
-            self._bins = np.full(n, self.bins, dtype=np.int64)
-        elif len(self.bins) == n:
-            self._bins = np.asarray(self.bins, dtype=np.int64)
-        else:
-            raise ValueError(f"bins must be an int or {n} ints (one per observation dimension), not {self.bins!r}")
+        self._bins = np.full(n, check_per_dimension("bins", self.bins, n), dtype=np.int64)
         self._n_bins = math.prod(self._bins.tolist())
         if self._n_bins > _MAX_BINS:
             raise ValueError(
@@ -177,14 +172,3 @@ class GridSarsa(TableSarsa):
         self._row_of_bin[visited] = np.arange(n)
         self._q[:n] = q
         self._n = n
-
-
-def _check_bins(bins: Any) -> int | list[int]:
-    def ok(b: Any) -> bool:
-        return not isinstance(b, bool) and isinstance(b, (int, np.integer)) and b >= 1
-
-    if ok(bins):
-        return int(bins)
-    if isinstance(bins, (list, tuple, np.ndarray)) and len(bins) > 0 and all(ok(b) for b in bins):
-        return [int(b) for b in bins]
-    raise ValueError(f"bins must be an integer >= 1 or a sequence of them (one per dimension), not {bins!r}")

@@ -1,14 +1,26 @@
-"""Agents by name: ``make_agent("avq-paper", env)``.
+"""Agents by name: ``make_agent("avq-paper", env)``, and the one table of their defaults.
 
-Each entry is a class and the defaults that define the name. The defaults of
-``avq-paper`` were chosen by the sweep in ``scripts/sweep_paper_defaults.py``
-(see docs/RESULTS.md, "How the defaults were chosen"; the raw results are in
-docs/data/sweep-paper-defaults.csv).
+:data:`DEFAULTS` is where every named agent's defaults live: for each name, its
+defaults everywhere (``"*"``) and, for some environments, the defaults that replace
+those (all of them) there, as RL Zoo keeps hyper-parameters per environment. Today
+only ``avq`` has such entries: on ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` it
+takes the collision-driven maze rules. Explicit parameters given to
+:func:`make_agent` win over both; the class's own signature defaults fill in what an
+entry leaves out. :func:`make_agent` records on the agent which entry it used
+(``agent.defaults_used``, a :class:`DefaultsUsed`) and ``avq train`` prints it.
+
+:data:`AGENTS` (name -> class and ``"*"`` defaults) and :data:`TASK_DEFAULTS`
+(name -> the per-environment entries) are views of :data:`DEFAULTS`, kept for the
+code that reads them; they hold the same dicts, not copies.
+
+The defaults of ``avq-paper`` were chosen by the sweep in
+``scripts/sweep_paper_defaults.py`` (see docs/RESULTS.md, "How the defaults were
+chosen"; the raw results are in docs/data/sweep-paper-defaults.csv).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 
@@ -19,44 +31,59 @@ from avq.agents.grid import GridSarsa
 from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
-__all__ = ["AGENTS", "TASK_DEFAULTS", "agent_defaults", "make_agent"]
+__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "TASK_DEFAULTS", "agent_defaults", "defaults_key",
+           "make_agent"]
 
-#: name -> (class, default hyper-parameters)
-AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
+#: name -> the agent's class.
+CLASSES: dict[str, type[BaseAgent]] = {
+    "avq-paper": AVQSarsa, "avq": AVQSarsa, "avq-maze": AVQSarsa, "tabular": TabularSarsa, "grid": GridSarsa,
+    "tiles": TileSarsa, "avq-actions": ActionCodebookSarsa, "uniform-actions": ActionCodebookSarsa,
+}
+
+# Beyond the paper, for tasks that report collisions (mazes, robots): the paper's
+# collision-driven rules, plus a split where a cell's greedy action hits a wall
+# (collision_split), and merging of any nearest pair of cells that share their greedy
+# action (merge_pairs="nearest", merge_same_action, rho high enough to merge on the action
+# alone), with at most 30 cells. Chosen with scripts/sweeps/ on lau2002 (docs/RESULTS.md,
+# "Beyond the paper"). (Named here because ``avq``'s maze entries start from it.)
+_AVQ_MAZE = dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.5, rho=200.0, chi=-50.0, q_init=5.0,
+                 traces="replacing", merge_every=1, value_trigger=None, scale=1.0, collision_split=True,
+                 merge_same_action=False, merge_pairs="nearest", max_cells=30)
+
+#: name -> {"*": its defaults, environment id: the defaults that replace them (all of them) there}.
+DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's rules exactly: collision trigger only, plain Euclidean metric
     # (scale 1, d_min in the environment's units), merge after every trial.
-    "avq-paper": (
-        AVQSarsa,
-        dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.0, rho=5.0, chi=-50.0,
-             q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0),
-    ),
+    "avq-paper": {
+        "*": dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.0, rho=5.0, chi=-50.0,
+                  q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0),
+    },
     # AVQ for any task: collisions when the env reports them, plus the value-change trigger
     # (SPEC §3) so that tasks without collisions grow a partition too; a merge guard so that
     # value-triggered cells (copies of their parent) get time to differ before a merge pass.
     # Metric scaled by the observation bounds (obs_bounds= for unbounded dimensions).
     # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
-    "avq": (
-        AVQSarsa,
-        dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
-             q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
-             reward_trigger=None, scale=None),
-    ),
-    # Beyond the paper, for tasks that report collisions (mazes, robots): the paper's
-    # collision-driven rules, plus a split where a cell's greedy action hits a wall
-    # (collision_split), and merging of any nearest pair of cells that share their greedy
-    # action (merge_pairs="nearest", merge_same_action, rho high enough to merge on the action
-    # alone), with at most 30 cells. Chosen with scripts/sweeps/ on lau2002 (docs/RESULTS.md,
-    # "Beyond the paper").
-    "avq-maze": (
-        AVQSarsa,
-        dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.5, rho=200.0, chi=-50.0,
-             q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0,
-             collision_split=True, merge_same_action=False, merge_pairs="nearest", max_cells=30),
-    ),
-    "tabular": (
-        TabularSarsa,
-        dict(alpha=0.1, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0, traces="replacing"),
-    ),
+    #
+    # On the grid maze, ``avq`` is ``avq-maze`` plus the cycle split and a decaying exploration rate (ε 0.2,
+    # times 0.995 per episode, down to 0.01). Chosen on 150 seeds of ``lau2002`` and 100 generated mazes, among
+    # the settings of scripts/ablation_avq.py (docs/RESULTS.md, "Beyond the paper"): 85% of the seeds meet all
+    # three goals (success >= 95%, path ratio <= 1.15, <= 30 cells; 78% without the schedule, 85% for avq-maze),
+    # mean success 0.980 (0.978, 0.970), 0.869 on the generated mazes (0.855, 0.842), in about 17.3k env steps
+    # (20.5k, 21.5k; tabular 17.5k). On RobotMaze the cycle split cost success (0.52 against 0.61, 300 episodes,
+    # 10 seeds), and the 30-cell cap is the grid maze's budget, so there ``avq`` is ``avq-maze`` without the cap
+    # (the general ``avq`` reached 0.24, ``tiles`` 0.85).
+    "avq": {
+        "*": dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
+                  q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
+                  reward_trigger=None, scale=None),
+        "avq/GridMaze-v0": {**_AVQ_MAZE, "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
+                            "epsilon_min": 0.01},
+        "avq/RobotMaze-v0": {**_AVQ_MAZE, "max_cells": 10_000},
+    },
+    "avq-maze": {"*": _AVQ_MAZE},
+    "tabular": {
+        "*": dict(alpha=0.1, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0, traces="replacing"),
+    },
     # The baselines. Their defaults were chosen by a quick measurement, described here with its
     # figures (the script is not in the repository): MountainCar-v0 (200-step limit) and CartPole-v1
     # (500-step limit, obs_bounds=[(-2.4, 2.4), (-3, 3), (-0.21, 0.21), (-3.5, 3.5)]), 300 episodes,
@@ -71,22 +98,20 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
     # 105.5; no lambda-0.7 setting got below 172.7 on MountainCar within 300 episodes); next were
     # alpha 0.5 with epsilon 0.02 (0.46: 178.8 / 63.7) and 0.05 (0.45: 191.7 / 83.4). With epsilon 0,
     # CartPole never learns (q_init 0 is pessimistic under +1 rewards: 28.9).
-    "grid": (
-        GridSarsa,
-        dict(bins=10, obs_bounds=None, alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0,
-             traces="replacing"),
-    ),
+    "grid": {
+        "*": dict(bins=10, obs_bounds=None, alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0,
+                  traces="replacing"),
+    },
     # "tiles": Sutton & Barto's Mountain Car agent (8 tilings of 8 x 8, alpha 0.5 in total, lambda 0.9,
     # q_init 0, replacing traces), but epsilon 0.05 instead of the book's 0: with epsilon 0, CartPole
     # stays at 10-14 steps for 2 seeds of 5 (108.7 / 185.0; with epsilon 0.05: 129.2 / 395.1), at a
     # cost of 20 steps on MountainCar. Scores: epsilon 0.05 0.89 (alpha 0.25: 0.89 too),
     # epsilon 0 0.72, 0.01-0.02 0.68-0.69. Pass epsilon=0 for the book's setting. The IHT never filled
     # (at most 2810 of 4096 tiles on CartPole).
-    "tiles": (
-        TileSarsa,
-        dict(n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None, alpha=0.5, lam=0.9, gamma=1.0,
-             epsilon=0.05, q_init=0.0, traces="replacing"),
-    ),
+    "tiles": {
+        "*": dict(n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None, alpha=0.5, lam=0.9, gamma=1.0,
+                  epsilon=0.05, q_init=0.0, traces="replacing"),
+    },
     # AVQ on the action space, for continuous (Box) actions: "avq-actions" grows and merges an action
     # codebook from 3 values per action dimension; "uniform-actions" is the same learner on a fixed
     # uniform grid. The learner is that of "tiles" but for gamma 0.99 (Pendulum never terminates) and q_init 30
@@ -101,45 +126,56 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
     # seeds 0-6): -183 / 91.3; uniform 5 (seeds 3-6): -180 / 92.4. All within the seeds' spread; the less
     # restless adapt_every 25 was kept.
     # Uniform 5 is the default grid: never worse than 3 here. docs/RESULTS.md, "AVQ on the action space".
-    "avq-actions": (
-        ActionCodebookSarsa,
-        dict(init_actions=3, fixed=False, max_actions=17, adapt_every=25, d_min=0.03, rho=30.0, memory=2000,
-             n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None, alpha=0.5, lam=0.9, gamma=0.99,
-             epsilon=0.05, q_init=30.0, traces="replacing"),
-    ),
-    "uniform-actions": (
-        ActionCodebookSarsa,
-        dict(init_actions=5, fixed=True, n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None, alpha=0.5,
-             lam=0.9, gamma=0.99, epsilon=0.05, q_init=30.0, traces="replacing"),
-    ),
-}
-
-
-#: name -> {environment id -> the defaults that replace the name's own (all of them) there}, as
-#: RL Zoo keeps hyper-parameters per environment. Explicit overrides still win.
-#:
-#: ``avq`` on the grid maze is ``avq-maze`` plus the cycle split and a decaying exploration rate (ε 0.2, times
-#: 0.995 per episode, down to 0.01). Chosen on 150 seeds of ``lau2002`` and 100 generated mazes, among the
-#: settings of scripts/ablation_avq.py (docs/RESULTS.md, "Beyond the paper"): 85% of the seeds meet all three
-#: goals (success >= 95%, path ratio <= 1.15, <= 30 cells; 78% without the schedule, 85% for avq-maze), mean
-#: success 0.980 (0.978, 0.970), 0.869 on the generated mazes (0.855, 0.842), in about 17.3k env steps
-#: (20.5k, 21.5k; tabular 17.5k). On RobotMaze the cycle split cost success (0.52 against 0.61, 300 episodes,
-#: 10 seeds), and the 30-cell cap is the grid maze's budget, so there ``avq`` is ``avq-maze`` without the cap
-#: (the general ``avq`` reached 0.24, ``tiles`` 0.85).
-TASK_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
-    "avq": {
-        "avq/GridMaze-v0": {**AGENTS["avq-maze"][1], "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
-                            "epsilon_min": 0.01},
-        "avq/RobotMaze-v0": {**AGENTS["avq-maze"][1], "max_cells": 10_000},
+    "avq-actions": {
+        "*": dict(init_actions=3, fixed=False, max_actions=17, adapt_every=25, d_min=0.03, rho=30.0, memory=2000,
+                  n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None, alpha=0.5, lam=0.9, gamma=0.99,
+                  epsilon=0.05, q_init=30.0, traces="replacing"),
+    },
+    "uniform-actions": {
+        "*": dict(init_actions=5, fixed=True, n_tilings=8, tiles_per_dim=8, iht_size=4096, obs_bounds=None,
+                  alpha=0.5, lam=0.9, gamma=0.99, epsilon=0.05, q_init=30.0, traces="replacing"),
     },
 }
 
 
+#: name -> (class, its ``"*"`` defaults): a view of :data:`DEFAULTS`.
+AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {name: (CLASSES[name], table["*"])
+                                                             for name, table in DEFAULTS.items()}
+#: name -> {environment id -> defaults} for the names with per-environment entries: a view of :data:`DEFAULTS`.
+TASK_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
+    name: {env_id: d for env_id, d in table.items() if env_id != "*"} for name, table in DEFAULTS.items()
+    if len(table) > 1
+}
+
+
+class DefaultsUsed(NamedTuple):
+    """Which defaults :func:`make_agent` gave an agent: ``DEFAULTS[name][key]``, then ``explicit``."""
+
+    name: str
+    env_id: str | None
+    #: The entry of ``DEFAULTS[name]`` used: ``"*"`` or an environment id.
+    key: str
+    #: The parameters given explicitly, which won over the entry.
+    explicit: dict[str, Any]
+
+    def __str__(self) -> str:
+        which = "the general defaults" if self.key == "*" else f"the {self.key} defaults"
+        explicit = ", ".join(f"{k}={v!r}" for k, v in self.explicit.items()) or "none"
+        return (f"agent {self.name} on {self.env_id or 'an unregistered environment'}: {which} of {self.name} "
+                f"(avq.agents.registry.DEFAULTS[{self.name!r}][{self.key!r}]); explicit: {explicit}")
+
+
+def defaults_key(name: str, env_id: str | None = None) -> str:
+    """The entry of ``DEFAULTS[name]`` that holds agent ``name``'s defaults on ``env_id``: the id or ``"*"``."""
+    if name not in DEFAULTS:
+        raise ValueError(f"unknown agent {name!r}; known agents: {', '.join(sorted(DEFAULTS))}")
+    return env_id if env_id is not None and env_id != "*" and env_id in DEFAULTS[name] else "*"
+
+
 def agent_defaults(name: str, env_id: str | None = None) -> dict[str, Any]:
     """The defaults of agent ``name``, on environment ``env_id`` if it has defaults of its own there."""
-    if name not in AGENTS:
-        raise ValueError(f"unknown agent {name!r}; known agents: {', '.join(sorted(AGENTS))}")
-    return dict(TASK_DEFAULTS.get(name, {}).get(env_id or "", AGENTS[name][1]))
+    key = defaults_key(name, env_id)
+    return dict(DEFAULTS[name][key])
 
 
 def _env_id(env: gym.Env | str) -> str | None:
@@ -160,18 +196,18 @@ def _env_id(env: gym.Env | str) -> str | None:
 def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrides: Any) -> BaseAgent:
     """Create the agent registered as ``name`` with its defaults, updated by ``overrides``.
 
-    Some agents have defaults of their own on some environments (:data:`TASK_DEFAULTS`): ``avq`` on
+    Some agents have defaults of their own on some environments (:data:`DEFAULTS`): ``avq`` on
     ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` uses the collision-driven maze rules. The
     environment is recognised by its registered id (``env.spec.id``, or the id registered for its class
-    when it was built without ``gymnasium.make``).
+    when it was built without ``gymnasium.make``). The agent's ``defaults_used`` says which entry
+    was used and which parameters were explicit.
 
     Raises:
         ValueError: unknown name, or an override that is not a parameter of the agent.
     """
-    agent_defaults(name)  # an unknown name first
     env_id = _env_id(env)
-    defaults = agent_defaults(name, env_id)
-    cls = AGENTS[name][0]
+    key = defaults_key(name, env_id)  # (an unknown name raises here)
+    cls = CLASSES[name]
     if "seed" in overrides:
         raise ValueError("seed is not an agent parameter here: pass it as seed= (on the command line, --seed)")
     valid = set(cls._param_names()) - {"seed"}
@@ -180,4 +216,6 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
         raise ValueError(
             f"unknown parameter {unknown[0]!r} for agent {name!r}; its parameters: {', '.join(sorted(valid))}"
         )
-    return cls(env, **{**defaults, **overrides, "seed": seed})
+    agent = cls(env, **{**DEFAULTS[name][key], **overrides, "seed": seed})
+    agent.defaults_used = DefaultsUsed(name, env_id, key, dict(overrides))
+    return agent

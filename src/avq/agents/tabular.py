@@ -8,9 +8,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._validate import check_bool, check_int, check_sarsa_params
 from avq.agents import _fused
 from avq.agents._table import TableSarsa
-from avq.agents.base import check_int, check_sarsa_params
 
 __all__ = ["TabularSarsa"]
 
@@ -57,9 +57,7 @@ class TabularSarsa(TableSarsa):
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.max_states = check_int("max_states", max_states, 1)
-        if not isinstance(fused, (bool, np.bool_)):
-            raise ValueError(f"fused must be True or False, not {fused!r}")
-        self.fused = bool(fused)
+        self.fused = check_bool("fused", fused)
         super().__init__(env, seed)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:

@@ -8,8 +8,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._validate import check_int, check_int_or_ints, check_per_dimension, check_sarsa_params
 from avq.agents._td import decide, sarsa_td_error, tile_step
-from avq.agents.base import BaseAgent, EpisodeRecord, check_int, check_sarsa_params, episode_record
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.tilecoding import TileCoder
 
@@ -40,19 +41,12 @@ def mark_traces(e: np.ndarray, active: np.ndarray, a: int, replacing: bool) -> N
 def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | None = None) -> tuple[int, bool]:
     """The Sarsa(λ) steps of a tile-coded agent (``TileSarsa``, ``ActionCodebookSarsa``) for at most
     ``max_steps`` steps; action ``a`` is sent to the environment as ``env_actions[a]`` if given."""
-    env, w, e, coder = agent.env, agent._w, agent._e, agent._coder
+    w, e, coder = agent._w, agent._e, agent._coder
     rows = np.arange(w.shape[0])
-    active, a = agent._ep_active, agent._ep_action
     replacing = agent.traces == "replacing"
     decay = agent.gamma * agent.lam
-    n = 0
-    ended = False
-    while n < max_steps:
-        obs, r, terminated, truncated, _ = env.step(a if env_actions is None else env_actions[a])
-        n += 1
-        agent._check_finite(obs, r, agent._ep_steps + n)
-        r = float(r)
-        agent._ep_return += r
+
+    def update(active: np.ndarray, a: int, r: float, obs: Any, terminated: bool) -> tuple[np.ndarray, int]:
         q_sa = agent._values(active)[a]
         if terminated:
             active2, a2 = active, a
@@ -65,12 +59,10 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
         mark_traces(e, active, a, replacing)
         # Rows are handed out in order of first use: rows past n_used have zero traces.
         tile_step(w, e, rows, coder.n_used, int(active[0]), a, delta, agent._step_size, decay, replacing)
-        active, a = active2, a2
-        if terminated or truncated:
-            ended = True
-            break
-    agent._ep_active, agent._ep_action = active, a
-    agent._ep_steps += n
+        return active2, a2
+
+    agent._ep_active, agent._ep_action, n, ended = agent._sarsa_steps(
+        max_steps, agent._ep_active, agent._ep_action, update, env_actions)
     return n, ended
 
 
@@ -130,16 +122,12 @@ class TileSarsa(BaseAgent):
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
         self.n_tilings = check_int("n_tilings", n_tilings, 1)
-        self.tiles_per_dim = _check_tiles_per_dim(tiles_per_dim)
+        self.tiles_per_dim = check_int_or_ints("tiles_per_dim", tiles_per_dim)
         self.iht_size = check_int("iht_size", iht_size, 1)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-        n = self._low.shape[0]
-        if isinstance(self.tiles_per_dim, list) and len(self.tiles_per_dim) != n:
-            raise ValueError(
-                f"tiles_per_dim must be an int or {n} ints (one per observation dimension), not {self.tiles_per_dim!r}"
-            )
+        check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
         if self.iht_size < self.n_tilings:
             raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
 
@@ -236,14 +224,3 @@ class TileSarsa(BaseAgent):
             raise ValueError(f"weights of shape {w.shape} do not fit ({self.iht_size}, {self.n_actions})")
         self._coder.restore(arrays["tiles"], int(meta["overflows"]))
         self._w[:] = w
-
-
-def _check_tiles_per_dim(value: Any) -> int | list[int]:
-    def ok(v: Any) -> bool:
-        return not isinstance(v, bool) and isinstance(v, (int, np.integer)) and v >= 1
-
-    if ok(value):
-        return int(value)
-    if isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0 and all(ok(v) for v in value):
-        return [int(v) for v in value]
-    raise ValueError(f"tiles_per_dim must be an integer >= 1 or a sequence of them (one per dimension), not {value!r}")

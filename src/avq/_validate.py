@@ -1,0 +1,106 @@
+"""The checks of hyper-parameters (the agents', the tile coder's), one function per kind of value.
+
+Every check takes the parameter's name and value, returns the value in the form the
+agent stores (a float, an int, a bool, a list), and raises a ``ValueError`` naming
+the parameter, what it must be and the value given: ``alpha must be in (0.0, 1.0],
+not 1.5``. A bad parameter is a ``ValueError`` everywhere in avq, whatever its type.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Callable, TypeVar
+
+import numpy as np
+
+__all__ = ["check_range", "check_int", "check_bool", "check_choice", "check_int_or_ints", "check_per_dimension",
+           "check_optional", "check_sarsa_params"]
+
+T = TypeVar("T")
+
+
+class _Invalid(ValueError):
+    """``{name} must be {expected}, not {value!r}``; :func:`check_optional` extends ``expected``."""
+
+    def __init__(self, name: str, expected: str, value: Any) -> None:
+        super().__init__(f"{name} must be {expected}, not {value!r}")
+        self.name, self.expected, self.value = name, expected, value
+
+
+def _is_int(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, np.integer))
+
+
+def check_range(name: str, value: Any, low: float, high: float, *, low_open: bool = False,
+                high_open: bool = False) -> float:
+    """``value`` as a float if it is a finite number in the interval (``inf`` only as a closed ``high``)."""
+    interval = f"{'(' if low_open else '['}{low}, {high}{')' if high_open else ']'}"
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise _Invalid(name, f"a number in {interval}", value)
+    v = float(value)
+    ok = np.isfinite(v) or (v == high and high == np.inf)
+    ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
+    if not ok:
+        raise _Invalid(name, f"in {interval}", value)
+    return v
+
+
+def check_int(name: str, value: Any, low: int) -> int:
+    """``value`` as an int if it is an integer (not a bool) ``>= low``."""
+    if not _is_int(value) or value < low:
+        raise _Invalid(name, f"an integer >= {low}", value)
+    return int(value)
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` as a bool if it is ``True`` or ``False`` (NumPy's included; not 0 or 1)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise _Invalid(name, "True or False", value)
+    return bool(value)
+
+
+def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
+    """``value`` if it is one of ``choices``."""
+    if value not in choices:
+        listed = " or ".join(map(repr, choices)) if len(choices) == 2 else f"one of {', '.join(map(repr, choices))}"
+        raise _Invalid(name, listed, value)
+    return value
+
+
+def check_int_or_ints(name: str, value: Any) -> int | list[int]:
+    """An integer >= 1 for every dimension, or a non-empty sequence of them (one per dimension)."""
+    def ok(v: Any) -> bool:
+        return _is_int(v) and v >= 1
+
+    if ok(value):
+        return int(value)
+    if isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0 and all(ok(v) for v in value):
+        return [int(v) for v in value]
+    raise _Invalid(name, "an integer >= 1 or a sequence of them (one per dimension)", value)
+
+
+def check_per_dimension(name: str, value: int | list[int], n: int) -> int | list[int]:
+    """A value of :func:`check_int_or_ints` once the number of observation dimensions ``n`` is known."""
+    if isinstance(value, list) and len(value) != n:
+        raise _Invalid(name, f"an int or {n} ints (one per observation dimension)", value)
+    return value
+
+
+def check_optional(check: Callable[..., T], name: str, value: Any, *args: Any, **kwargs: Any) -> T | None:
+    """None (the parameter is off), or ``check(name, value, *args, **kwargs)``; the message adds "or None"."""
+    if value is None:
+        return None
+    try:
+        return check(name, value, *args, **kwargs)
+    except _Invalid as exc:
+        raise _Invalid(exc.name, f"{exc.expected} or None", exc.value) from None
+
+
+def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: Any, q_init: Any, traces: Any) -> None:
+    """Check and store the hyper-parameters every Sarsa(λ) agent shares."""
+    agent.alpha = check_range("alpha", alpha, 0.0, 1.0, low_open=True)
+    agent.lam = check_range("lam", lam, 0.0, 1.0)
+    agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
+    agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
+    agent.q_init = check_range("q_init", q_init, -np.inf, np.inf, low_open=True, high_open=True)
+    agent.traces = check_choice("traces", traces, ("replacing", "accumulating"))

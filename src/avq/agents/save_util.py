@@ -1,0 +1,179 @@
+"""The model file: what ``agent.save`` writes and :func:`load` reads.
+
+A model file is a zip of two members, written atomically and never pickled:
+
+- ``meta.json``: the header (``format``, ``format_version``, ``avq_version``), the
+  agent's class and constructor parameters, the spaces and the environment id with
+  the ``gymnasium.make`` arguments that rebuild it, and the agent's counters and
+  generator states (``state``, from ``agent._state_dict()``);
+- ``arrays.npz``: the learned arrays and the episode history, numbers only.
+
+Kept apart from the agents (as Stable-Baselines3 keeps ``common/save_util.py``):
+this module builds agents from files, so it imports :mod:`avq.agents.base`, and
+``BaseAgent.save``/``load`` reach it when they are called.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from avq._io import atomic_write_bytes
+from avq._version import __version__
+from avq.agents.base import _AGENT_CLASSES, BaseAgent, _make_env
+
+__all__ = ["FORMAT_VERSION", "save", "load"]
+
+FORMAT_VERSION = 2
+#: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
+_READABLE_VERSIONS = (1, 2)
+
+
+def _env_make_args(env: gym.Env) -> dict[str, Any] | None:
+    """The ``gymnasium.make`` arguments that rebuild ``env`` (its kwargs and step limit), if JSON can hold them."""
+    spec = getattr(env, "spec", None)
+    if spec is None:
+        return None
+    args = dict(spec.kwargs or {})
+    if spec.max_episode_steps is not None:
+        args["max_episode_steps"] = int(spec.max_episode_steps)
+    try:
+        return json.loads(json.dumps(args))
+    except (TypeError, ValueError):
+        return None
+
+
+def _space_to_json(space: spaces.Space) -> dict[str, Any]:
+    if isinstance(space, spaces.Discrete):
+        return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
+    if isinstance(space, spaces.Box):
+        return {
+            "type": "Box",
+            "shape": list(space.shape),
+            "low": np.asarray(space.low, dtype=np.float64).ravel().tolist(),
+            "high": np.asarray(space.high, dtype=np.float64).ravel().tolist(),
+        }
+    return {"type": type(space).__name__}
+
+
+def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
+    """Write ``agent`` to a model file at ``path`` (``.zip`` appended when it has no suffix); return the path."""
+    path = Path(path)
+    if path.is_dir() or not path.name:
+        raise ValueError(f"{path} is a directory; give a file name such as {path / 'model.zip'}")
+    if path.suffix == "":
+        path = path.with_suffix(".zip")
+    state, arrays = agent._state_dict()
+    meta = {
+        "format": "avq-agent",
+        "format_version": FORMAT_VERSION,
+        "avq_version": __version__,
+        "class": type(agent).__name__,
+        "params": agent.get_params(),
+        "observation_space": _space_to_json(agent.env.observation_space),
+        "action_space": _space_to_json(agent.env.action_space),
+        "env_id": getattr(getattr(agent.env, "spec", None), "id", None),
+        "env_make": _env_make_args(agent.env),
+        "state": state,
+    }
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("meta.json", json.dumps(meta, indent=1))
+        zf.writestr("arrays.npz", buf.getvalue())
+    atomic_write_bytes(path, out.getvalue())
+    return path
+
+
+def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    try:
+        with zipfile.ZipFile(path) as zf:
+            meta = json.loads(zf.read("meta.json").decode("utf-8"))
+            raw = zf.read("arrays.npz")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such model file") from None
+    except Exception as exc:  # noqa: BLE001  (a damaged file can fail anywhere in zipfile: BadZipFile, zlib.error,
+        # NotImplementedError for flags it cannot read, RuntimeError for encryption, struct or JSON errors...)
+        raise ValueError(f"{path}: not a readable avq model file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != "avq-agent":
+        raise ValueError(f"{path}: not an avq model file (no avq-agent header)")
+    if meta.get("format_version") not in _READABLE_VERSIONS:
+        raise ValueError(
+            f"{path}: model format version {meta.get('format_version')} is not supported "
+            f"(this avq reads versions {', '.join(map(str, _READABLE_VERSIONS))})"
+        )
+    try:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    except Exception as exc:  # noqa: BLE001  (as above: any failure to parse is an unreadable file)
+        raise ValueError(f"{path}: the model's arrays are unreadable ({exc})") from None
+    for name, arr in arrays.items():
+        if arr.dtype.kind not in "biuf":
+            raise ValueError(f"{path}: array {name!r} has dtype {arr.dtype}; a model holds only numbers")
+        if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+            raise ValueError(f"{path}: array {name!r} holds NaN or infinite values")
+    for key, kind in (("params", dict), ("state", dict), ("class", str)):
+        if not isinstance(meta.get(key), kind):
+            raise ValueError(f"{path}: the model's header has no valid {key!r}")
+    return meta, arrays
+
+
+def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
+    """Load any avq agent saved with ``agent.save(path)``.
+
+    Args:
+        path: The saved file.
+        env: The environment to attach. Without one, the environment is made from
+            the id stored in the file (which must be registered).
+
+    Raises:
+        ValueError: the file is not an avq model, is damaged, or its spaces do not
+            match ``env``'s.
+    """
+    path = Path(path)
+    if not path.exists() and path.suffix == "" and path.with_suffix(".zip").exists():
+        path = path.with_suffix(".zip")
+    meta, arrays = _read_model_file(path)
+    cls = _AGENT_CLASSES.get(meta.get("class", ""))
+    if cls is None:
+        raise ValueError(f"{path}: unknown agent class {meta.get('class')!r}")
+    if env is None:
+        if not meta.get("env_id"):
+            raise ValueError(f"{path}: the model records no environment id; pass env= to load it")
+        make = meta.get("env_make")
+        if meta.get("format_version", 1) >= 2 and make is None:
+            raise ValueError(f"{path}: the environment's gymnasium.make arguments could not be saved; "
+                             "pass env= to load it")
+        try:
+            env = _make_env(meta["env_id"], **(make or {}))
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}; pass env= to load it") from None
+    params = dict(meta["params"])
+    env = _make_env(env)
+    for key in ("observation_space", "action_space"):
+        want = meta.get(key)
+        have = _space_to_json(getattr(env, key))
+        if want != have:
+            raise ValueError(f"{path}: the model was saved for {key} {want}, but env has {have}")
+    try:
+        agent = cls(env, **params)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: the saved parameters are not valid for {cls.__name__} ({exc})") from None
+    agent._setup()
+    agent._is_setup = True
+    if meta["format_version"] >= 2 and "history" not in arrays:
+        raise ValueError(f"{path}: the model's state is incomplete (no history array)")
+    try:
+        agent._load_state_dict(meta["state"], arrays)
+    except (KeyError, ValueError, IndexError, TypeError, AttributeError) as exc:
+        raise ValueError(f"{path}: the model's state is incomplete or inconsistent ({exc})") from None
+    return agent
