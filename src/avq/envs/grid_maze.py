@@ -53,6 +53,16 @@ class GridDynamics:
     bump_reward: float = BUMP_REWARD
 
 
+def action_index(action: Any) -> int:
+    """The move ``action`` names, 0 to 3 (an integer, or a NumPy integer scalar); else a ``ValueError``."""
+    a = int(action) if isinstance(action, (int, np.integer)) and not isinstance(action, bool) else -1
+    if a < 0 and isinstance(action, np.ndarray) and action.shape == () and action.dtype.kind in "iu":
+        a = int(action)
+    if not 0 <= a < 4:
+        raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
+    return a
+
+
 @njit(cache=True, inline="always")
 def grid_move(walls: np.ndarray, x: int, y: int, a: int, gx: int, gy: int) -> tuple[int, int, float, bool, bool]:
     """The maze's dynamics for one move: ``(x, y, reward, terminated, collision)`` afterwards.
@@ -159,11 +169,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), self._info(False)
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = int(action) if isinstance(action, (int, np.integer)) and not isinstance(action, bool) else -1
-        if a < 0 and isinstance(action, np.ndarray) and action.shape == () and action.dtype.kind in "iu":
-            a = int(action)
-        if not 0 <= a < 4:
-            raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
+        a = action_index(action)
         self._x, self._y, reward, terminated, collision = grid_move(
             self.layout.walls, self._x, self._y, a, self._gx, self._gy)
         return self._obs(), reward, terminated, False, self._info(collision)

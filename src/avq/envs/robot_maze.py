@@ -34,6 +34,7 @@ from avq.envs.grid_maze import (
     NORTH,
     SOUTH,
     WEST,
+    action_index,
     read_only,
 )
 from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
@@ -118,6 +119,20 @@ def in_goal(x: float, y: float, gx: float, gy: float) -> bool:
     return abs(x - gx) <= 0.5 + EPS and abs(y - gy) <= 0.5 + EPS
 
 
+@njit(cache=True, inline="always")
+def _axis(u: float, d: float):
+    """One axis of :func:`cast_ray`'s traversal from coordinate ``u`` along ``d``: the step (+1, -1, 0),
+    the offset of the next grid line (1 or 0), the current index, the first and last index touched
+    (two when the ray runs along a grid line, ``d == 0``) and the time of the next grid line."""
+    if d != 0.0:
+        step = 1 if d > 0.0 else -1
+        off = 1 if d > 0.0 else 0
+        i = math.floor(u) if d > 0.0 else math.ceil(u) - 1
+        return step, off, i, i, i, (i + off - u) / d
+    lo = math.ceil(u) - 1
+    return 0, 0, lo, lo, math.floor(u), math.inf
+
+
 @njit(cache=True)
 def cast_ray(grid: np.ndarray, x: float, y: float, dx: float, dy: float, t_max: float) -> float:
     """Distance from ``(x, y)`` along the unit vector ``(dx, dy)`` to the first wall, at most ``t_max``.
@@ -135,30 +150,8 @@ def cast_ray(grid: np.ndarray, x: float, y: float, dx: float, dy: float, t_max: 
     v = y + 1.5
     # Columns: ix is the current one, tx the time of the next vertical grid line
     # (at u = ix + bx); likewise rows.
-    if dx != 0.0:
-        sx = 1 if dx > 0.0 else -1
-        bx = 1 if dx > 0.0 else 0
-        ix = math.floor(u) if dx > 0.0 else math.ceil(u) - 1
-        xa = xb = ix
-        tx = (ix + bx - u) / dx
-    else:
-        sx = bx = 0
-        xa = math.ceil(u) - 1
-        xb = math.floor(u)
-        ix = xa
-        tx = math.inf
-    if dy != 0.0:
-        sy = 1 if dy > 0.0 else -1
-        by = 1 if dy > 0.0 else 0
-        iy = math.floor(v) if dy > 0.0 else math.ceil(v) - 1
-        ya = yb = iy
-        ty = (iy + by - v) / dy
-    else:
-        sy = by = 0
-        ya = math.ceil(v) - 1
-        yb = math.floor(v)
-        iy = ya
-        ty = math.inf
+    sx, bx, ix, xa, xb, tx = _axis(u, dx)
+    sy, by, iy, ya, yb, ty = _axis(v, dy)
     while True:
         if tx < ty:  # into the next column
             if tx >= t_max:
@@ -481,11 +474,7 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), self._info(False)
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = int(action) if isinstance(action, (int, np.integer)) and not isinstance(action, bool) else -1
-        if a < 0 and isinstance(action, np.ndarray) and action.shape == () and action.dtype.kind in "iu":
-            a = int(action)
-        if not 0 <= a < 4:
-            raise ValueError(f"action must be an integer in [0, 3], not {action!r}")
+        a = action_index(action)
         self._steps += 1
         self._x, self._y, reward, terminated, collision = robot_move(
             self._grid, self._x, self._y, a, self.move, self.radius, self._gx, self._gy)
