@@ -3,16 +3,16 @@
 One implementation of the agent's rules serves both paths:
 
 * the generic path (any Gymnasium environment) steps the environment in Python
-  and calls :func:`observe` after every step and :func:`learn` at the end of
-  every aggregate transition;
-* the fused paths (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``) run the
-  environment's dynamics and these same kernels inside one compiled loop.
+  and makes one compiled call per step, :func:`generic_step` (:func:`observe`,
+  then at the end of an aggregate transition :func:`decide` and :func:`learn`);
+* the fused paths (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``, :mod:`avq.agents._fused`)
+  run the environment's dynamics and these same kernels inside one compiled loop.
 
-The random stream is the agent's ``numpy.random.Generator``: the generic path
-draws in Python (:func:`avq.agents._td.epsilon_greedy`), the fused path draws
-from the very same generator inside the compiled loop
-(the loop draws from it directly), and both make the same calls in the same order,
-so both paths give identical results.
+The update rules themselves (ε-greedy, the TD error, the Sarsa(λ) update) are those of
+:mod:`avq.agents._td`, and the merge criteria those of :mod:`avq.rules`. The random
+stream is the agent's ``numpy.random.Generator``: the fused loops draw from it directly,
+the generic path through its :class:`~avq._random.RawStream`, which gives the very same
+numbers; both make the same draws in the same order, so both paths give identical results.
 
 State lives in preallocated arrays: ``V`` codebook ``(cap, n)``, ``Q`` and ``E``
 ``(cap, m)``, ``born`` ``(cap, 2 + m)`` the episode (1-based) that created each cell,

@@ -24,6 +24,8 @@ from gymnasium import spaces
 
 from avq._io import ProgressLog
 from avq._random import RawStream
+from avq.agents import save_util
+from avq.envs import as_env
 from avq.agents._td import decide
 from avq.agents._history import EpisodeHistory
 from avq._validate import check_bool, check_int, check_optional
@@ -36,7 +38,6 @@ EpisodeRecord = dict[str, Any]
 #: ``callback(agent, record)`` after every episode; returning ``False`` stops ``learn``.
 Callback = Callable[["BaseAgent", EpisodeRecord], "bool | None"]
 
-_AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
 
 #: The fields every agent records per episode (``episode`` and ``wall_s`` are added by ``learn``).
 RECORD_FIELDS = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
@@ -53,19 +54,6 @@ def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any
     }
 
 
-def _make_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
-    if isinstance(env, str):
-        import avq.envs  # noqa: F401  (registers avq's environments)
-
-        try:
-            return gym.make(env, **make_args)
-        except (gym.error.Error, TypeError) as exc:
-            raise ValueError(f"cannot make environment {env!r}: {exc}") from None
-    if not isinstance(env, gym.Env):
-        raise TypeError(f"env must be a gymnasium.Env or a registered id, not {type(env).__name__}")
-    return env
-
-
 class BaseAgent:
     """Base class of avq's agents (see :class:`avq.AVQSarsa` for the full API).
 
@@ -80,10 +68,10 @@ class BaseAgent:
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        _AGENT_CLASSES[cls.__name__] = cls
+        save_util.AGENT_CLASSES[cls.__name__] = cls  # so that a model file names its class
 
     def __init__(self, env: gym.Env | str, seed: int | None) -> None:
-        self.env = _make_env(env)
+        self.env = as_env(env)
         self.seed = check_optional(check_int, "seed", seed, 0)
         self._check_spaces(self.env.observation_space, self.env.action_space)
         if isinstance(self.env.action_space, spaces.Discrete):  # (agents for Box actions define their own)
@@ -426,7 +414,6 @@ class BaseAgent:
         (``.zip`` is appended when the path has no suffix). The format is described
         in :mod:`avq.agents.save_util`.
         """
-        from avq.agents import save_util  # (it imports this module)
 
         return save_util.save(self, path)
 
@@ -472,6 +459,4 @@ class _LearnCall:
 
 def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
     """Load any avq agent saved with ``agent.save(path)``: :func:`avq.agents.save_util.load`."""
-    from avq.agents import save_util  # (it imports this module)
-
     return save_util.load(path, env=env)

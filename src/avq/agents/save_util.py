@@ -8,9 +8,9 @@ A model file is a zip of two members, written atomically and never pickled:
   generator states (``state``, from ``agent._state_dict()``);
 - ``arrays.npz``: the learned arrays and the episode history, numbers only.
 
-Kept apart from the agents (as Stable-Baselines3 keeps ``common/save_util.py``):
-this module builds agents from files, so it imports :mod:`avq.agents.base`, and
-``BaseAgent.save``/``load`` reach it when they are called.
+Kept apart from the agents (as Stable-Baselines3 keeps ``common/save_util.py``). It
+imports no agent: the classes it can build are in :data:`AGENT_CLASSES`, which every
+subclass of ``BaseAgent`` joins when it is defined; ``BaseAgent.save``/``load`` call it.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import json
 import os
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -28,7 +28,13 @@ from gymnasium import spaces
 
 from avq._io import atomic_write_bytes
 from avq._version import __version__
-from avq.agents.base import _AGENT_CLASSES, BaseAgent, _make_env
+from avq.envs import as_env
+
+if TYPE_CHECKING:
+    from avq.agents.base import BaseAgent
+
+#: Every agent class by name (filled by ``BaseAgent.__init_subclass__``): a model file names its class.
+AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
 
 __all__ = ["FORMAT_VERSION", "save", "load"]
 
@@ -143,7 +149,7 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
     if not path.exists() and path.suffix == "" and path.with_suffix(".zip").exists():
         path = path.with_suffix(".zip")
     meta, arrays = _read_model_file(path)
-    cls = _AGENT_CLASSES.get(meta.get("class", ""))
+    cls = AGENT_CLASSES.get(meta.get("class", ""))
     if cls is None:
         raise ValueError(f"{path}: unknown agent class {meta.get('class')!r}")
     if env is None:
@@ -154,11 +160,11 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
             raise ValueError(f"{path}: the environment's gymnasium.make arguments could not be saved; "
                              "pass env= to load it")
         try:
-            env = _make_env(meta["env_id"], **(make or {}))
+            env = as_env(meta["env_id"], **(make or {}))
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}; pass env= to load it") from None
     params = dict(meta["params"])
-    env = _make_env(env)
+    env = as_env(env)
     for key in ("observation_space", "action_space"):
         want = meta.get(key)
         have = _space_to_json(getattr(env, key))
