@@ -55,13 +55,15 @@ def _next32(raw, cursor) -> np.uint64:
     return v & _MASK32
 
 
-@njit(cache=True, inline="always")
+# (raw_uniform and raw_below are not inlined at Numba's IR level: inlining raw_below's loop through the
+# overloads below trips a pedantic check of Numba's that warns at compile time; LLVM inlines them anyway.)
+@njit(cache=True)
 def raw_uniform(raw, cursor) -> float:
     """``Generator.random()``."""
     return float(_next64(raw, cursor) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def raw_below(raw, cursor, n: int) -> int:
     """``Generator.integers(0, n)`` for ``1 <= n <= 2**32``."""
     if n == 1:
@@ -87,21 +89,31 @@ def below(src, n):  # pragma: no cover - replaced by the overload in compiled co
     raise NotImplementedError
 
 
-@overload(uniform)
+# Inlined at Numba's IR level (inline="always"): a Generator handed to a function that is not inlined
+# is reference-counted at every call, which costs a third of a decision (benchmarks/speed.py, 2b).
+@overload(uniform, inline="always")
 def _uniform(src):
     if isinstance(src, types.NumPyRandomGeneratorType):
-        return lambda src: src.random()
+        def from_generator(src):
+            return src.random()
+        return from_generator
     if isinstance(src, types.BaseTuple):
-        return lambda src: raw_uniform(src[0], src[1])
+        def from_stream(src):
+            return raw_uniform(src[0], src[1])
+        return from_stream
     return None
 
 
-@overload(below)
+@overload(below, inline="always")
 def _below(src, n):
     if isinstance(src, types.NumPyRandomGeneratorType):
-        return lambda src, n: src.integers(0, n)
+        def from_generator(src, n):
+            return src.integers(0, n)
+        return from_generator
     if isinstance(src, types.BaseTuple):
-        return lambda src, n: raw_below(src[0], src[1], n)
+        def from_stream(src, n):
+            return raw_below(src[0], src[1], n)
+        return from_stream
     return None
 
 

@@ -498,6 +498,7 @@ def _cut(buf: np.ndarray, start: int, shapes: tuple) -> list[np.ndarray]:
 def generic_start(fb, ib, raw, cursor, obs) -> int:
     """Start an episode at ``obs`` (SPEC §3's first vector if the codebook is empty) and decide its
     first action; or ``NEED_ROOM`` / ``NEED_DRAWS`` / ``BAD_SHAPE`` / ``NOT_FINITE``, changing nothing."""
+    raw, cursor = borrowed(raw), borrowed(cursor)
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr = unpack(fb, ib)
     if obs.shape[0] != x.shape[0]:
         return BAD_SHAPE
@@ -519,6 +520,7 @@ def generic_step(fb, ib, raw, cursor, obs, r, collision, terminated, truncated) 
     """One environment step of the generic path: :func:`observe`, then at the end of an aggregate
     transition the next decision and :func:`learn`. Returns the action to take next, ``ENDED``, or
     (changing nothing) ``NEED_ROOM``, ``NEED_DRAWS``, ``BAD_SHAPE``, ``NOT_FINITE``."""
+    raw, cursor = borrowed(raw), borrowed(cursor)
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr = unpack(fb, ib)
     if obs.shape[0] != x.shape[0]:
         return BAD_SHAPE
