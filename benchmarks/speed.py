@@ -46,7 +46,8 @@ class CopyMaze(GridMaze):
     """``lau2002`` as a plain copy under another id: avq does not know it, so nothing is fused."""
 
 
-gym.register("bench/CopyMaze-v0", entry_point=CopyMaze, max_episode_steps=100)
+if "bench/CopyMaze-v0" not in gym.registry:
+    gym.register("bench/CopyMaze-v0", entry_point=CopyMaze, max_episode_steps=100)
 
 
 @njit(cache=True)

@@ -219,7 +219,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
     ``T``: rows in use, current row, current action, episode steps, rows added this
     episode, in-episode flag; ``TF[0]``: episode return. ``q`` and ``e`` must have a
     row for every position; ``act`` is the active list of :mod:`avq.agents._td`.
-    Returns ``(steps, episodes, status)``.
+    Returns ``(steps, episodes, status)``. (GridMaze only: ``robot`` must be False.)
     """
     q, e, act, row_of, keys, T, TF = (borrowed(q), borrowed(e), borrowed(act), borrowed(row_of), borrowed(keys),
                                       borrowed(T), borrowed(TF))
@@ -232,7 +232,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
                 return steps, episodes, DONE
             if episodes >= rec.shape[0]:
                 return steps, episodes, RECORDS_FULL
-            _start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
+            _start(env_rng, pos, False, walls, gx, gy, starts, fixed, radius)
             clear_traces(e, act)
             T[3] = 0
             T[4] = 0
@@ -242,7 +242,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
             T[5] = 1
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, _ = _move(pos, T[2], robot, walls, gx, gy, move, radius)
+        r, terminated, _ = _move(pos, T[2], False, walls, gx, gy, move, radius)
         truncated = pos[2] >= max_episode_steps
         steps += 1
         T[3] += 1

@@ -132,7 +132,7 @@ def sarsa_lambda(Q: np.ndarray, E: np.ndarray, act: np.ndarray, s_tm1: int, a_tm
     trace_update(Q, E, act[1:], act[0], s_tm1, a_tm1, delta, alpha, trace_decay, replacing)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def table_step(src, Q, E, act, s, a, r, s2, terminated, epsilon, alpha, gamma, lam, replacing) -> int:
     """One step of tabular Sarsa(λ) (one decision per step) from row ``s``, action ``a``, to row ``s2``
     with reward ``r``: the next action (``a`` itself on a terminal step, which draws nothing), then
