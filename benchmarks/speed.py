@@ -233,7 +233,7 @@ def main() -> None:
     print(f"\n1. fused training on GridMaze lau2002 (reference: Numba tabular Sarsa(λ), {ref / 1e6:.2f} M steps/s)")
     print(f"   {'agent':<10} {'M steps/s':>10} {'of reference':>13} {'cells':>6}")
     for name in ("avq-paper", "avq", "tabular"):
-        sps, cells = avq_fused_steps_per_second(name, int(3000 * scale) or 100)
+        sps, cells = avq_fused_steps_per_second(name, int(10000 * scale) or 100)
         print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
 
     print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")

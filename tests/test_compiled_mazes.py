@@ -43,6 +43,9 @@ def test_the_step_limit_in_force_comes_from_gymnasiums_time_limit_and_the_robots
     assert compiled_maze(GridMaze()).max_episode_steps == NO_LIMIT
     assert compiled_maze(gym.make("avq/RobotMaze-v0", max_steps=50)).max_episode_steps == 50
     assert compiled_maze(TimeLimit(RobotMaze(max_steps=50), 20)).max_episode_steps == 20
+    # A TimeLimit of one's own around gymnasium.make's: the smaller limit applies.
+    assert compiled_maze(TimeLimit(gym.make("avq/GridMaze-v0"), 60)).max_episode_steps == 60
+    assert compiled_maze(TimeLimit(TimeLimit(GridMaze(), 50), 60)).max_episode_steps == 50
 
 
 def test_only_gymnasiums_standard_wrappers_and_the_mazes_themselves_are_compiled():
@@ -50,7 +53,6 @@ def test_only_gymnasiums_standard_wrappers_and_the_mazes_themselves_are_compiled
         pass
 
     assert compiled_maze(RecordEpisodeStatistics(gym.make("avq/GridMaze-v0"))) is None
-    assert compiled_maze(TimeLimit(TimeLimit(GridMaze(), 50), 60)) is None  # which limit applies is unclear
     assert compiled_maze(MyMaze()) is None  # a subclass may step differently
     assert _fused.plan(gym.make("avq/RobotMaze-v0", sonar_noise=0.1)) is None
     assert _fused.plan(gym.make("avq/RobotMaze-v0"), grid_only=True) is None
@@ -75,14 +77,34 @@ def test_episode_state_is_read_and_written_so_that_step_goes_on_from_there():
     assert robot.step(0)[3]  # truncated at its own limit
 
 
+@pytest.mark.parametrize("make", [lambda k: TimeLimit(GridMaze(), k), lambda k: TimeLimit(gym.make("avq/GridMaze-v0"), k)],
+                         ids=["bare", "around-gym-make"])
 @pytest.mark.parametrize("limit", [7, 23])
-def test_a_time_limit_the_user_set_applies_to_fused_training(limit):
+def test_a_time_limit_the_user_set_applies_to_fused_training(limit, make):
     runs = []
     for fused in (True, False):
-        agent = avq.make_agent("avq-paper", TimeLimit(GridMaze(), limit), seed=1, fused=fused)
+        agent = avq.make_agent("avq-paper", make(limit), seed=1, fused=fused)
         assert (agent._fused_runner() is not None) == fused
         runs.append(agent.learn(total_episodes=40).learn(total_timesteps=55))
     a, b = runs
     steps = a.episode_history()["steps"]
     assert steps.max() == limit and np.array_equal(steps, b.episode_history()["steps"])
     assert np.array_equal(a.q_, b.q_) and np.array_equal(a.codebook_, b.codebook_)
+
+
+def test_the_mazes_arguments_are_read_only_so_the_dynamics_cannot_go_stale():
+    env = RobotMaze(max_steps=30)
+    for name in ("max_steps", "move", "radius", "sonar_noise", "sonar_range", "observe_sonar", "start"):
+        with pytest.raises(AttributeError):
+            setattr(env, name, getattr(env, name))
+    with pytest.raises(AttributeError):
+        GridMaze().start = "fixed"
+    assert env.max_steps == env.dynamics.max_steps == 30
+
+
+def test_tabular_is_not_fused_on_a_maze_larger_than_max_states():
+    agent = avq.make_agent("tabular", gym.make("avq/GridMaze-v0"), seed=0, max_states=24)
+    assert agent._fused_runner() is None
+    with pytest.raises(ValueError, match="max_states"):
+        agent.learn(total_episodes=200)
+    assert avq.make_agent("tabular", gym.make("avq/GridMaze-v0"), seed=0)._fused_runner() is not None

@@ -69,3 +69,25 @@ def test_a_copy_of_the_maze_under_another_id_is_not_fused_and_learns_the_same():
         agent.learn(total_episodes=80)
     assert runs[0]._fused_runner() is None and runs[1]._fused_runner() is not None
     assert np.array_equal(runs[0].q_, runs[1].q_)
+
+
+def test_an_agent_trained_on_the_generic_path_pickles_and_goes_on_identically():
+    import pickle
+
+    agent = avq.make_agent("avq", gym.make("MountainCar-v0"), seed=3)
+    agent.learn(total_episodes=3)
+    twin = pickle.loads(pickle.dumps(agent))
+    agent.learn(total_episodes=2)
+    twin.learn(total_episodes=2)
+    assert np.array_equal(agent.q_, twin.q_) and np.array_equal(agent.codebook_, twin.codebook_)
+
+
+def test_a_reward_that_is_not_a_number_is_refused_naming_the_step():
+    class Bad(gym.Wrapper):
+        def step(self, action):
+            obs, r, te, tr, info = self.env.step(action)
+            return obs, ("oops" if self.env.unwrapped.position == (1, 2) else r), te, tr, info
+
+    agent = avq.make_agent("avq-paper", Bad(gym.make("avq/GridMaze-v0")), seed=0)
+    with pytest.raises(ValueError, match=r"reward 'oops' at step \d+ of episode \d+ is not a number"):
+        agent.learn(total_episodes=500)

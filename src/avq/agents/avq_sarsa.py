@@ -282,19 +282,45 @@ class AVQSarsa(BaseAgent):
             for new, old in zip(views, self._views):
                 new[: len(old)] = old
         self._fb, self._ib, self._views = fb, ib, views
-        (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
-         self._S, self._F, _, _) = views
+        for name, view in zip(self._VIEWS, views):
+            setattr(self, name, view)
 
     def _ensure_capacity(self, extra: int) -> None:
-        """Room for ``extra`` more cells (the kernels append in place and never reallocate)."""
-        cap = self._V.shape[0]
-        if self._S[core.SIZE] + extra <= cap:
+        """Room for ``extra`` more cells (the kernels append in place and never reallocate): doubling, but
+        never beyond ``max_cells`` and the few rows a step may ask for over it."""
+        cap, size = self._V.shape[0], int(self._S[core.SIZE])
+        if size + extra <= cap:
             return
-        self._allocate(max(2 * cap, int(self._S[core.SIZE]) + extra))
+        self._allocate(max(min(2 * cap, self.max_cells + 4), size + extra))
+
+    _VIEWS = ("_V", "_Q", "_E", "_born", "_act", "_pc", "_inv_scale", "_P", "_IP", "_S", "_F")
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The arrays are views of the two buffers: pickle the buffers and make the views again on loading.
+        # The compiled function of the last generic step cannot be pickled; the next step finds it again.
+        state = self.__dict__.copy()
+        for name in self._VIEWS + ("_views",):
+            state.pop(name, None)
+        state["_direct"] = (None, None, None, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if getattr(self, "_fb", None) is not None:
+            views = core.python_views(self._fb, self._ib)
+            self._views = views
+            for name, view in zip(self._VIEWS, views):
+                setattr(self, name, view)
 
     def _state(self) -> tuple:
         return (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
                 self._S, self._F)
+
+    def _as_reward(self, r: Any, step: int) -> float:
+        try:
+            return float(r)
+        except (TypeError, ValueError):
+            raise ValueError(f"reward {r!r} at step {step} of episode {self.num_episodes + 1} is not a number") from None
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
@@ -344,12 +370,14 @@ class AVQSarsa(BaseAgent):
                     and obs.flags.c_contiguous and type(r) is r_type):
                 a = direct(fb, ib, raw, cursor, obs, r, collision, terminated, truncated)
             else:
+                terminated, truncated = bool(terminated), bool(truncated)
                 if type(obs) is not ndarray or obs.ndim != 1:
                     obs = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
                 try:
                     a = kernel(fb, ib, raw, cursor, obs, r, collision, terminated, truncated)
-                except TypingError:  # an observation of a dtype the kernel cannot read
+                except TypingError:  # an observation or a reward of a type the kernel cannot read
                     obs = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+                    r = self._as_reward(r, int(S[core.EP_STEPS]) + 1)
                     a = core.NEED_DRAWS
                 else:
                     direct = _direct_call(kernel, (fb, ib, raw, cursor, obs, r, collision, terminated, truncated))
@@ -357,7 +385,7 @@ class AVQSarsa(BaseAgent):
                     self._direct = (direct, obs_dtype, obs_shape, r_type)
             if a < ended:
                 a = self._compiled(kernel, obs, int(S[core.EP_STEPS]) + 1, r, r, collision, terminated, truncated)
-                fb, ib, raw = self._fb, self._ib, draws.raw
+                fb, ib, raw, S = self._fb, self._ib, draws.raw, self._S
             if a == ended:
                 return n, True
         return n, False

@@ -390,6 +390,7 @@ class BaseAgent:
         self.num_episodes = int(meta["num_episodes"])
         self._wall_s = float(meta.get("wall_s", 0.0))
         self._rng.bit_generator.state = meta["rng"]
+        self._draws = RawStream(self._rng)  # (no draws from the old state may be served)
         if "predict_rng" in meta:
             self._predict_rng.bit_generator.state = meta["predict_rng"]
         history = arrays.get("history")

@@ -110,8 +110,8 @@ class TabularSarsa(TableSarsa):
 
     def _fused_runner(self):
         maze = _fused.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
-        if maze is None:
-            return None
+        if maze is None or maze.dynamics.walls.size > self.max_states:
+            return None  # (with fewer rows than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
         args = _fused.maze_arguments(maze)
 

@@ -38,14 +38,15 @@ class CompiledMaze:
     Attributes:
         maze: the maze (``env.unwrapped``).
         dynamics: ``maze.dynamics``.
-        max_episode_steps: the step limit in force: the ``TimeLimit``'s, and for RobotMaze
-            also its own ``max_steps`` (the smaller); :data:`NO_LIMIT` without either.
+        max_episode_steps: the step limit in force: the smallest of the ``TimeLimit`` wrappers'
+            (``gymnasium.make``'s and any of your own) and, for RobotMaze, its own ``max_steps``;
+            :data:`NO_LIMIT` without any.
     """
 
     maze: GridMaze | RobotMaze
     dynamics: GridDynamics | RobotDynamics
     max_episode_steps: int
-    _time_limit: TimeLimit | None
+    _time_limits: tuple[TimeLimit, ...]
     _order: OrderEnforcing | None
 
     @property
@@ -57,8 +58,8 @@ class CompiledMaze:
         """The robot's position and the steps elapsed in the current episode (by the ``TimeLimit``'s
         count where there is one)."""
         x, y = self.maze.position
-        if self._time_limit is not None:
-            elapsed = self._time_limit._elapsed_steps or 0
+        if self._time_limits:
+            elapsed = self._time_limits[0]._elapsed_steps or 0  # (the wrappers count together: one reset, one step)
         elif isinstance(self.maze, RobotMaze):
             elapsed = self.maze.elapsed_steps
         else:
@@ -71,8 +72,8 @@ class CompiledMaze:
             self.maze.place(x, y, elapsed)
         else:
             self.maze.place(int(x), int(y))
-        if self._time_limit is not None:
-            self._time_limit._elapsed_steps = int(elapsed)
+        for time_limit in self._time_limits:
+            time_limit._elapsed_steps = int(elapsed)
         if self._order is not None:
             self._order._has_reset = True  # the loop's episode was started by a reset of its own
 
@@ -80,14 +81,13 @@ class CompiledMaze:
 def compiled_maze(env: gym.Env) -> CompiledMaze | None:
     """``env`` as a :class:`CompiledMaze`, if it is a :class:`GridMaze` or :class:`RobotMaze` (not a
     subclass, which may step differently) under Gymnasium's standard wrappers only (``TimeLimit``,
-    ``OrderEnforcing``, ``PassiveEnvChecker``, at most one ``TimeLimit``); else None."""
-    time_limit = order = None
+    any number of them, ``OrderEnforcing``, ``PassiveEnvChecker``); else None."""
+    time_limits: list[TimeLimit] = []
+    order = None
     e = env
     while isinstance(e, gym.Wrapper):
         if isinstance(e, TimeLimit):
-            if time_limit is not None:
-                return None
-            time_limit = e
+            time_limits.append(e)
         elif isinstance(e, OrderEnforcing):
             order = e
         elif not isinstance(e, PassiveEnvChecker):
@@ -95,7 +95,7 @@ def compiled_maze(env: gym.Env) -> CompiledMaze | None:
         e = e.env
     if type(e) not in (GridMaze, RobotMaze):
         return None
-    limit = time_limit._max_episode_steps if time_limit is not None else NO_LIMIT
+    limit = min([t._max_episode_steps for t in time_limits], default=NO_LIMIT)
     if isinstance(e, RobotMaze):
         limit = min(limit, e.dynamics.max_steps)
-    return CompiledMaze(e, e.dynamics, int(limit), time_limit, order)
+    return CompiledMaze(e, e.dynamics, int(limit), tuple(time_limits), order)

@@ -133,7 +133,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         check_start(self.layout, start)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
-        self.start = start
+        self._start_mode = start
         self.render_mode = render_mode
         h, w = self.layout.height, self.layout.width
         self.observation_space = spaces.Box(
@@ -186,6 +186,11 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
     def position(self) -> tuple[int, int]:
         """The robot's current ``(x, y)``."""
         return self._x, self._y
+
+    @property
+    def start(self) -> str:
+        """``"random"`` or ``"fixed"`` (read-only: the frozen :attr:`dynamics` hold it)."""
+        return self._start_mode
 
     def place(self, x: int, y: int) -> None:
         """Put the robot on square ``(x, y)`` without starting an episode.

@@ -415,21 +415,16 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
             raise ValueError(f"max_steps must be None or an integer >= 1, not {max_steps!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
-        self.start = start
-        self.radius = radius
-        self.move = move
-        self.sonar_range = sonar_range
-        self.sonar_noise = sonar_noise
         if not isinstance(observe_sonar, (bool, np.bool_)):
             raise ValueError(f"observe_sonar must be True or False, not {observe_sonar!r}")
-        self.observe_sonar = bool(observe_sonar)
-        self.max_steps = int(max_steps)
+        observe_sonar = bool(observe_sonar)
+        self._start_mode = start
         self.render_mode = render_mode
 
         h, w = self.layout.height, self.layout.width
         low = [-0.5, -0.5]
         high = [w - 0.5, h - 0.5]
-        if self.observe_sonar:
+        if observe_sonar:
             low += [0.0] * N_SONARS
             high += [sonar_range] * N_SONARS
         self.observation_space = spaces.Box(
@@ -450,9 +445,9 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         self.dynamics = RobotDynamics(
             grid=read_only(self._grid), goal=(self._gx, self._gy), starts=read_only(self._starts.astype(np.int64)),
             fixed_start=tuple(float(v) for v in self.layout.start) if start == "fixed" else None,
-            move=self.move, radius=self.radius, sonar_directions=read_only(self._dirs),
-            sonar_range=self.sonar_range, sonar_noise=self.sonar_noise, observe_sonar=self.observe_sonar,
-            max_steps=self.max_steps,
+            move=move, radius=radius, sonar_directions=read_only(self._dirs),
+            sonar_range=sonar_range, sonar_noise=sonar_noise, observe_sonar=observe_sonar,
+            max_steps=int(max_steps),
         )
         """The maze's dynamics as frozen data (:class:`RobotDynamics`), for compiled loops."""
 
@@ -538,6 +533,20 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
     def position(self) -> tuple[float, float]:
         """The robot's current centre ``(x, y)``."""
         return self._x, self._y
+
+    # The arguments, read-only: the frozen dynamics hold them, so that what ``step`` does and what a
+    # compiled loop does cannot drift apart.
+    @property
+    def start(self) -> str:
+        """``"random"`` or ``"fixed"``."""
+        return self._start_mode
+
+    radius = property(lambda self: self.dynamics.radius, doc="The robot's radius.")
+    move = property(lambda self: self.dynamics.move, doc="The length of a move.")
+    sonar_range = property(lambda self: self.dynamics.sonar_range, doc="The sonar's range.")
+    sonar_noise = property(lambda self: self.dynamics.sonar_noise, doc="The sonar's noise (standard deviation).")
+    observe_sonar = property(lambda self: self.dynamics.observe_sonar, doc="Whether the sonar is observed.")
+    max_steps = property(lambda self: self.dynamics.max_steps, doc="The step limit of an episode (the env truncates).")
 
     @property
     def elapsed_steps(self) -> int:
