@@ -560,3 +560,58 @@ def test_numpy_integer_actions_accepted(action):
     obs, r, *_ = env.step(action)
     assert pos(obs) == (1, 2)
     assert r == -1.0
+
+
+# -- slip: a stochastic maze ------------------------------------------------------------------------
+
+def test_slip_is_a_probability_and_zero_draws_nothing():
+    for bad in (-0.1, 1.0, 1.5, True, "0.1", None):
+        with pytest.raises(ValueError, match="slip must be a probability in \\[0, 1\\)"):
+            GridMaze(slip=bad)
+    env = GridMaze(layout="open5")
+    env.reset(seed=3)
+    state = env.np_random.bit_generator.state
+    for a in (0, 1, 2, 3) * 5:
+        env.step(a)
+    assert env.np_random.bit_generator.state == state  # deterministic moves draw nothing
+
+
+def test_a_slip_goes_to_either_side_never_backwards_as_often_as_asked():
+    # From the centre of the open 5 x 5 maze, ask for East 6,000 times with slip 0.3: the move goes East
+    # with probability 0.7, North and South with 0.15 each, West never.
+    env = GridMaze(layout="open5", slip=0.3)
+    env.reset(seed=0)
+    moves = {(1, 0): 0, (0, -1): 0, (0, 1): 0, (-1, 0): 0}
+    for _ in range(6000):
+        env.reset(options={"start": (2, 2)})
+        obs, _, _, _, _ = env.step(EAST)
+        moves[(int(obs[0]) - 2, int(obs[1]) - 2)] += 1
+    assert moves[(-1, 0)] == 0
+    assert abs(moves[(1, 0)] / 6000 - 0.7) < 0.03
+    assert abs(moves[(0, -1)] / 6000 - 0.15) < 0.02 and abs(moves[(0, 1)] / 6000 - 0.15) < 0.02
+
+
+def test_the_slip_rule_draws_as_documented():
+    # u = random() < slip slips; then integers(0, 2) picks a + 1 (0) or a + 3 (1), modulo 4.
+    from avq.envs.grid_maze import slipped
+
+    rng, twin = np.random.default_rng(5), np.random.default_rng(5)
+    for k in range(200):
+        a = k % 4
+        want = (a + 1 + 2 * int(twin.integers(0, 2))) % 4 if twin.random() < 0.4 else a
+        assert slipped(rng, a, 0.4) == want  # compiled
+    assert rng.bit_generator.state == twin.bit_generator.state
+    assert slipped.py_func(rng, 2, 0.4) == ((2 + 1 + 2 * int(twin.integers(0, 2))) % 4 if twin.random() < 0.4 else 2)
+
+
+@pytest.mark.parametrize("name", ["avq-paper", "avq", "tabular"])
+def test_fused_and_generic_training_on_a_slippery_maze_are_identical(name):
+    runs = []
+    for fused in (True, False):
+        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0", slip=0.1), seed=4, fused=fused)
+        assert (agent._fused_runner() is not None) == fused
+        runs.append(agent.learn(total_episodes=120).learn(total_timesteps=333))
+    a, b = runs
+    assert np.array_equal(a.q_, b.q_)
+    for key in ("steps", "return", "n_cells"):
+        assert np.array_equal(a.episode_history()[key], b.episode_history()[key])

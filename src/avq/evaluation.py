@@ -100,7 +100,8 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         env: A maze environment (``avq/GridMaze-v0`` or ``avq/RobotMaze-v0``, possibly
             wrapped). Use one that is not being trained on: it is reset for every start.
             On RobotMaze the starts are the centres of the free non-goal squares and the
-            shortest path is the exact minimum number of moves.
+            shortest path is the exact minimum number of moves. On a GridMaze with ``slip``,
+            each walk slips as the env does (from its ``np_random``: seed it for repeatable figures).
         max_steps: Step limit of each run; default the env's step limit (100 on GridMaze).
 
     Returns:
@@ -125,7 +126,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         default_limit = _step_limit(env)
     limit = int(max_steps) if max_steps is not None else default_limit
     outcomes = []
-    if isinstance(base, GridMaze):
+    if isinstance(base, GridMaze) and base.dynamics.slip == 0.0:
         # The greedy policy is a function of the position: ask for every position at once and walk
         # the maze with its own compiled move (the same as stepping the environment).
         free = layout.free_positions(include_goal=True)

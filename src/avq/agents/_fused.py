@@ -29,7 +29,7 @@ from avq.agents._avq_core import (
 )
 from avq.agents._td import clear_traces, epsilon_greedy, table_step
 from avq.envs.compiled import CompiledMaze, compiled_maze
-from avq.envs.grid_maze import GridDynamics, grid_move
+from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
 
 __all__ = ["plan", "maze_arguments", "drive", "run_avq_maze", "run_tabular_grid_maze"]
@@ -53,14 +53,14 @@ def plan(env, grid_only: bool = False) -> CompiledMaze | None:
 
 def maze_arguments(maze: CompiledMaze) -> tuple:
     """The maze's part of a fused loop's arguments: ``(robot, walls, gx, gy, starts, fixed, move,
-    radius, dirs, sonar_range, observe_sonar, max_episode_steps)``; ``fixed`` is the fixed start, or
-    NaN for random starts."""
+    radius, slip, dirs, sonar_range, observe_sonar, max_episode_steps)``; ``fixed`` is the fixed start,
+    or NaN for random starts."""
     d = maze.dynamics
     fixed = np.array(d.fixed_start if d.fixed_start is not None else (np.nan, np.nan), dtype=np.float64)
     if isinstance(d, GridDynamics):
-        return (False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0,
+        return (False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0, d.slip,
                 np.zeros((0, 2)), 0.0, False, maze.max_episode_steps)
-    return (True, d.grid, d.goal[0], d.goal[1], d.starts, fixed, d.move, d.radius, d.sonar_directions,
+    return (True, d.grid, d.goal[0], d.goal[1], d.starts, fixed, d.move, d.radius, 0.0, d.sonar_directions,
             d.sonar_range, d.observe_sonar, maze.max_episode_steps)
 
 
@@ -99,11 +99,13 @@ def _start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius) -> None:
 
 
 @njit(cache=True, inline="always")
-def _move(pos, a, robot, walls, gx, gy, move, radius):
-    """One step of the maze from ``pos`` (in place): ``(reward, terminated, collision)``."""
+def _move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip):
+    """One step of the maze from ``pos`` (in place): ``(reward, terminated, collision)``. GridMaze's
+    moves slip as its ``step`` makes them slip (from the maze's generator)."""
     if robot:
         pos[0], pos[1], r, terminated, collision = robot_move(walls, pos[0], pos[1], a, move, radius, gx, gy)
     else:
+        a = slipped(env_rng, a, slip)
         nx, ny, r, terminated, collision = grid_move(walls, int(pos[0]), int(pos[1]), a, int(gx), int(gy))
         pos[0] = nx
         pos[1] = ny
@@ -129,7 +131,7 @@ def _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar,
 
 @njit(cache=True)
 def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
-                 robot, walls, gx, gy, starts, fixed, move, radius, dirs, sonar_range, observe_sonar,
+                 robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
                  max_episode_steps, pos, budget_steps, budget_episodes, rec):
     """Train AVQ Sarsa(λ) on a maze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
 
@@ -168,7 +170,7 @@ def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
         if S[SIZE] + 3 > cap:
             return steps, episodes, NEED_CAPACITY
         a = S[ACTION]
-        r, terminated, collision = _move(pos, a, robot, walls, gx, gy, move, radius)
+        r, terminated, collision = _move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip)
         truncated = pos[2] >= max_episode_steps
         _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
         steps += 1
@@ -211,8 +213,8 @@ def _table_row(row_of, keys, T, x, y):
 
 @njit(cache=True)
 def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
-                          robot, walls, gx, gy, starts, fixed, move, radius, dirs, sonar_range, observe_sonar,
-                          max_episode_steps, pos, budget_steps, budget_episodes, rec):
+                          robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range,
+                          observe_sonar, max_episode_steps, pos, budget_steps, budget_episodes, rec):
     """Tabular Sarsa(λ) on a GridMaze: :func:`avq.agents._td.table_step` at every step, as ``TabularSarsa``
     does stepping the environment.
 
@@ -242,7 +244,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
             T[5] = 1
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, _ = _move(pos, T[2], False, walls, gx, gy, move, radius)
+        r, terminated, _ = _move(env_rng, pos, T[2], False, walls, gx, gy, move, radius, slip)
         truncated = pos[2] >= max_episode_steps
         steps += 1
         T[3] += 1

@@ -12,7 +12,7 @@ from numba import njit
 
 from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
 
-__all__ = ["GridMaze", "GridDynamics", "grid_move", "NORTH", "EAST", "SOUTH", "WEST"]
+__all__ = ["GridMaze", "GridDynamics", "grid_move", "slipped", "NORTH", "EAST", "SOUTH", "WEST"]
 
 NORTH, EAST, SOUTH, WEST = 0, 1, 2, 3
 
@@ -41,6 +41,7 @@ class GridDynamics:
         goal: the goal square ``(x, y)``.
         starts: ``(k, 2)`` int64 free non-goal squares ``(x, y)``, row-major (read-only).
         fixed_start: the start of every episode with ``start="fixed"``, else None.
+        slip: the probability that a move goes sideways instead (:func:`slipped`); 0: deterministic.
         goal_reward, move_reward, bump_reward: the rewards of :func:`grid_move`.
     """
 
@@ -48,9 +49,20 @@ class GridDynamics:
     goal: tuple[int, int]
     starts: np.ndarray
     fixed_start: tuple[int, int] | None
+    slip: float = 0.0
     goal_reward: float = GOAL_REWARD
     move_reward: float = MOVE_REWARD
     bump_reward: float = BUMP_REWARD
+
+
+@njit(cache=True, inline="always")
+def slipped(rng, a: int, slip: float) -> int:
+    """The direction a move ``a`` takes: with probability ``slip`` one of the two perpendicular ones
+    (equally likely), else ``a`` itself. Draws ``rng.random()``, and ``rng.integers(0, 2)`` when it slips;
+    draws nothing when ``slip`` is 0."""
+    if slip > 0.0 and rng.random() < slip:
+        return (a + 1 + 2 * rng.integers(0, 2)) % 4
+    return a
 
 
 def action_index(action: Any) -> int:
@@ -114,6 +126,10 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
     - ``start``: ``"random"`` (uniform over free non-goal positions, drawn from
       ``self.np_random``) or ``"fixed"`` (the layout's ``S``).
       ``reset(options={"start": (x, y)})`` starts at a given free position.
+    - ``slip``: in [0, 1). With this probability a move goes in one of the two directions
+      perpendicular to the one asked for (equally likely, drawn from ``self.np_random``), as
+      FrozenLake's ``is_slippery``; a move that slips into a wall is a bump. 0 (the default, the
+      paper's maze): deterministic, and ``step`` draws nothing.
     - ``render_mode``: ``"ansi"`` or ``"rgb_array"``.
 
     ## Info
@@ -127,10 +143,14 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         self,
         layout: LayoutSpec = "lau2002",
         start: str = "random",
+        slip: float = 0.0,
         render_mode: str | None = None,
     ) -> None:
         self.layout: Layout = load_layout(layout)
         check_start(self.layout, start)
+        if isinstance(slip, bool) or not isinstance(slip, (int, float, np.integer, np.floating)) \
+                or not 0.0 <= float(slip) < 1.0:
+            raise ValueError(f"slip must be a probability in [0, 1), not {slip!r} (0: deterministic moves)")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
         self._start_mode = start
@@ -150,6 +170,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
             walls=read_only(self.layout.walls), goal=(int(self._gx), int(self._gy)),
             starts=read_only(self._starts.astype(np.int64)),
             fixed_start=tuple(int(v) for v in self.layout.start) if start == "fixed" else None,
+            slip=float(slip),
         )
         """The maze's dynamics as frozen data (:class:`GridDynamics`), for compiled loops."""
 
@@ -170,6 +191,8 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         a = action_index(action)
+        if self.dynamics.slip > 0.0:  # (the compiled rule run by Python: a Generator is slow to hand to Numba)
+            a = slipped.py_func(self.np_random, a, self.dynamics.slip)
         self._x, self._y, reward, terminated, collision = grid_move(
             self.layout.walls, self._x, self._y, a, self._gx, self._gy)
         return self._obs(), reward, terminated, False, self._info(collision)
