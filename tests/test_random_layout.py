@@ -51,3 +51,37 @@ def test_bad_arguments(args, needle):
 def test_zero_density_is_an_open_room():
     lay = parse_layout(random_layout(6, 5, 0.0, seed=0))
     assert lay.n_states == 12 and np.array_equal(lay.walls[1:-1, 1:-1], np.zeros((3, 4), bool))
+
+
+# -- refine_layout: the same maze at k times the resolution --------------------------------------------
+
+def test_refine_layout_by_hand():
+    from avq.envs import refine_layout
+
+    assert refine_layout(["#S", ".G"], 1) == ["#S", ".G"]
+    # k = 3: each square a 3 x 3 block; S and G at the centre (1, 1) of their blocks.
+    assert refine_layout(["#S", ".G"], 3) == [
+        "###...",
+        "###.S.",
+        "###...",
+        "......",
+        "....G.",
+        "......",
+    ]
+    for bad in (0, -1, 2.0, True):
+        with pytest.raises(ValueError, match="k must be an integer >= 1"):
+            refine_layout(["#S", ".G"], bad)
+
+
+@pytest.mark.parametrize("k", [2, 4])
+def test_refined_lau2002_has_k_squared_the_squares_and_at_most_k_times_the_distances(k):
+    from avq.envs import load_layout, refine_layout
+
+    base, fine = load_layout("lau2002"), load_layout(refine_layout("lau2002", k))
+    assert fine.n_states == k * k * base.n_states
+    assert np.array_equal(fine.walls, np.kron(base.walls, np.ones((k, k), dtype=bool)))
+    for x, y in base.free_positions():
+        # From the centre square of a block to the goal: at most k times the coarse distance (the coarse
+        # path, k squares a move; the fine path may cut corners inside blocks, so it can be shorter).
+        d = fine.distances[y * k + k // 2, x * k + k // 2]
+        assert 0 < d <= k * base.distances[y, x]

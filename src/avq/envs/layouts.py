@@ -16,7 +16,7 @@ from typing import Sequence, Union
 import numpy as np
 
 __all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS",
-           "check_start", "random_layout"]
+           "check_start", "random_layout", "refine_layout"]
 
 #: Colours of the maze renderings (RGB).
 COLOURS = {
@@ -291,3 +291,26 @@ def random_layout(width: int, height: int, wall_density: float = 0.25, seed: int
     rows = ["".join("#" if walls[y, x] else "." for x in range(int(width))) for y in range(int(height))]
     rows[gy] = rows[gy][:gx] + "G" + rows[gy][gx + 1:]
     return rows
+
+
+def refine_layout(layout: LayoutSpec, k: int) -> list[str]:
+    """``layout`` at ``k`` times its resolution: every square becomes a block of ``k`` x ``k`` squares.
+
+    The same maze, finer: walls become blocks of walls and free squares blocks of free squares, so
+    a shortest path is up to ``k`` times as long (a little less where it cuts corners inside blocks)
+    and a table needs ``k**2`` times the rows, while the maze's structure (and a good partition of
+    it) is unchanged. The goal ``G`` and the start ``S``
+    become one square each, the one at the centre of their block (``k // 2`` from its top-left corner);
+    the rest of their block is free. ``k = 1`` gives the layout back. Returns the rows, ready for
+    ``gymnasium.make("avq/GridMaze-v0", layout=...)`` (raise ``max_episode_steps`` with ``k``).
+    """
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise ValueError(f"k must be an integer >= 1 (the refinement factor), not {k!r}")
+    base = load_layout(layout)
+    k = int(k)
+    walls = np.kron(base.walls, np.ones((k, k), dtype=bool))
+    rows = [["#" if w else "." for w in row] for row in walls]
+    for mark, at in (("G", base.goal), ("S", base.start)):
+        if at is not None:
+            rows[at[1] * k + k // 2][at[0] * k + k // 2] = mark
+    return ["".join(row) for row in rows]
