@@ -28,8 +28,11 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-__all__ = ["RawStream", "uniform", "below"]
+__all__ = ["RawStream", "uniform", "below", "DRAWS_PER_DECISION"]
 
+#: Raw outputs one ε-greedy decision needs at most (three), with room to spare for Lemire rejections
+#: (each has probability below m / 2**32): what :meth:`RawStream.reserve` makes sure of by default.
+DRAWS_PER_DECISION = 16
 #: ``cursor`` fields: next unused raw output, whether half of an output is kept, that half.
 POS, HAS32, HALF = 0, 1, 2
 _MASK32 = np.uint64(0xFFFFFFFF)
@@ -140,7 +143,7 @@ class RawStream:
         """The source of draws for :func:`uniform` and :func:`below`."""
         return self.raw, self.cursor
 
-    def reserve(self, need: int = 64) -> None:
+    def reserve(self, need: int = DRAWS_PER_DECISION) -> None:
         """Make sure at least ``need`` raw outputs are left in the buffer."""
         if self._start is not None and self.raw.shape[0] - self.cursor[POS] >= need:
             return

@@ -12,7 +12,8 @@ import gymnasium as gym
 import numpy as np
 
 from avq._io import ProgressLog, atomic_write_bytes
-from avq.agents.base import PROGRESS_COLUMNS, check_int
+from avq._validate import check_int
+from avq.agents.base import PROGRESS_COLUMNS
 from avq.agents.registry import AGENTS, make_agent
 from avq.evaluation import evaluate_maze
 

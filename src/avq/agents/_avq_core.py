@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from avq._kernels import borrowed, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index, nearest_pairs_kernel
+from avq._random import DRAWS_PER_DECISION
 from avq.agents._td import clear_traces, epsilon_greedy, greedy_ties, sarsa_lambda, sarsa_td_error
 from avq.rules import APPEND as APPEND_OUTCOME
 from avq.rules import CHI as CHI_OUTCOME
@@ -427,15 +428,19 @@ def decide(src, Q, born, P, j: int, scr) -> int:
 N_DIMS = 3
 #: Statuses of :func:`generic_step` (an action, >= 0, when the episode goes on).
 ENDED, NEED_DRAWS, BAD_SHAPE, NEED_ROOM = -1, -3, -4, -5  # (NOT_FINITE is -2)
-#: Raw draws a step may need at most, but for Lemire rejections (each has probability < m / 2**32).
-DRAWS_PER_STEP = 16
+
+
+def _layout(cap: int, n: int, m: int) -> tuple[tuple, tuple]:
+    """The shapes of the views, in buffer order: float ``V, Q, E, inv_scale, P, F, x, scr`` and int (after
+    the dimensions) ``born, act, pc, IP, S`` (what :func:`unpack` cuts, compiled)."""
+    return (((cap, n), (cap, m), (cap, m), (n,), (N_P,), (N_F,), (n,), (1, m)),
+            ((cap, 2 + m), (cap + 1,), (cap + 1, 2), (N_IP,), (N_S,)))
 
 
 def packed_sizes(cap: int, n: int, m: int) -> tuple[int, int]:
     """Lengths of the float and int buffers for ``cap`` cells of ``n`` dimensions and ``m`` actions."""
-    floats = cap * n + 2 * cap * m + n + N_P + N_F + n + m
-    ints = N_DIMS + cap * (2 + m) + (cap + 1) + 2 * (cap + 1) + N_IP + N_S
-    return floats, ints
+    f_shapes, i_shapes = _layout(cap, n, m)
+    return (sum(math.prod(s) for s in f_shapes), N_DIMS + sum(math.prod(s) for s in i_shapes))
 
 
 @njit(cache=True, inline="always")
@@ -475,10 +480,8 @@ def unpack(fb, ib):
 
 def python_views(fb: np.ndarray, ib: np.ndarray) -> tuple:
     """The same views as :func:`unpack`, made by NumPy (the agent's attributes)."""
-    cap, n, m = (int(v) for v in ib[:N_DIMS])
-    f_sizes = ((cap, n), (cap, m), (cap, m), (n,), (N_P,), (N_F,), (n,), (1, m))
-    i_sizes = ((cap, 2 + m), (cap + 1,), (cap + 1, 2), (N_IP,), (N_S,))
-    f_views, i_views = _cut(fb, 0, f_sizes), _cut(ib, N_DIMS, i_sizes)
+    f_shapes, i_shapes = _layout(*(int(v) for v in ib[:N_DIMS]))
+    f_views, i_views = _cut(fb, 0, f_shapes), _cut(ib, N_DIMS, i_shapes)
     V, Q, E, inv_scale, P, F, x, scr = f_views
     born, act, pc, IP, S = i_views
     return V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr
@@ -488,7 +491,7 @@ def _cut(buf: np.ndarray, start: int, shapes: tuple) -> list[np.ndarray]:
     """Consecutive views of ``buf`` from ``start``, one per shape."""
     out, o = [], start
     for shape in shapes:
-        size = int(np.prod(shape))
+        size = math.prod(shape)
         out.append(buf[o:o + size].reshape(shape))
         o += size
     return out
@@ -504,7 +507,7 @@ def generic_start(fb, ib, raw, cursor, obs) -> int:
         return BAD_SHAPE
     if S[SIZE] + 1 > V.shape[0]:
         return NEED_ROOM
-    if raw.shape[0] - cursor[0] < DRAWS_PER_STEP:
+    if raw.shape[0] - cursor[0] < DRAWS_PER_DECISION:  # (a step takes at most one decision)
         return NEED_DRAWS
     for d in range(x.shape[0]):
         x[d] = obs[d]
@@ -526,7 +529,7 @@ def generic_step(fb, ib, raw, cursor, obs, r, collision, terminated, truncated) 
         return BAD_SHAPE
     if S[SIZE] + 3 > V.shape[0]:  # a step appends at most three cells
         return NEED_ROOM
-    if raw.shape[0] - cursor[0] < DRAWS_PER_STEP:
+    if raw.shape[0] - cursor[0] < DRAWS_PER_DECISION:  # (a step takes at most one decision)
         return NEED_DRAWS
     for d in range(x.shape[0]):
         x[d] = obs[d]

@@ -18,10 +18,6 @@ from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
 __all__ = ["TableSarsa"]
 
-#: Raw draws a decision needs at most, but for rejections of probability below m / 2**32 each.
-_DRAWS = 16
-
-
 class TableSarsa(BaseAgent):
     """Base of the table agents: ``_q``, ``_e`` ``(rows, m)``, the active list ``_act`` of
     :mod:`avq.agents._td`, ``_n`` rows in use; the episode's row, action, steps, return and new rows."""
@@ -62,7 +58,7 @@ class TableSarsa(BaseAgent):
         self._ep_new = 0
         self._check_finite(obs, 0.0, 0)
         self._ep_row = self._row(obs)
-        self._draws.reserve(_DRAWS)
+        self._draws.reserve()
         self._ep_action = int(decide(self._draws.src, self._q, self._ep_row, self.epsilon))
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
@@ -70,7 +66,7 @@ class TableSarsa(BaseAgent):
 
         def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:
             s2 = self._row(obs)
-            draws.reserve(_DRAWS)
+            draws.reserve()
             return s2, int(table_step(draws.src, self._q, self._e, self._act, s, a, r, s2, terminated,
                                       self.epsilon, self.alpha, self.gamma, self.lam, replacing))
 

@@ -338,7 +338,7 @@ class AVQSarsa(BaseAgent):
             if res == core.NEED_ROOM:
                 self._ensure_capacity(3)
             elif res == core.NEED_DRAWS:
-                draws.reserve(core.DRAWS_PER_STEP)
+                draws.reserve()
             else:
                 break
         if res == core.BAD_SHAPE:

@@ -29,7 +29,6 @@ from avq.envs import as_env
 from avq.agents._td import decide
 from avq.agents._history import EpisodeHistory
 from avq._validate import check_bool, check_int, check_optional
-from avq._validate import check_range, check_sarsa_params  # noqa: F401  (importable from here as before)
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
 
@@ -169,7 +168,7 @@ class BaseAgent:
     def _decide(self, values: np.ndarray) -> int:
         """ε-greedy over one profile of action values (:func:`avq.agents._td.epsilon_greedy`), drawn
         from the agent's stream."""
-        self._draws.reserve(16)
+        self._draws.reserve()
         return int(decide(self._draws.src, values.reshape(1, -1), 0, self.epsilon))
 
     def _check_finite(self, obs: Any, r: Any, step: int) -> None:
