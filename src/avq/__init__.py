@@ -6,7 +6,8 @@ Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/R
 
 from avq._version import __version__
 from avq import envs  # noqa: F401  (registers the environments)
-from avq.agents import AGENTS, AVQSarsa, BaseAgent, GridSarsa, TabularSarsa, TileSarsa, load, make_agent
+from avq.agents import (AGENTS, AVQSarsa, BaseAgent, GridSarsa, PlanningAVQ, PrioritizedSweeping, TabularSarsa, TileSarsa, load,
+                        make_agent)
 from avq.evaluation import evaluate_maze
 from avq.quantizer import Codebook
 
@@ -21,7 +22,9 @@ from avq.sweep import sweep
 
 __all__ = [
     "AVQSarsa",
+    "PlanningAVQ",
     "TabularSarsa",
+    "PrioritizedSweeping",
     "GridSarsa",
     "TileSarsa",
     "BaseAgent",

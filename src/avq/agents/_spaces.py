@@ -7,7 +7,7 @@ from typing import Any, Sequence
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["resolve_bounds", "normalize_obs_bounds", "check_box_discrete"]
+__all__ = ["resolve_bounds", "resolve_scale", "normalize_obs_bounds", "check_box_discrete"]
 
 
 def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -42,6 +42,33 @@ def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tup
         if not high[d] > low[d]:
             raise ValueError(f"observation dimension {d} has bounds [{low[d]}, {high[d]}]; high must exceed low")
     return low, high
+
+
+def resolve_scale(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> np.ndarray:
+    """The per-dimension scale of a codebook's metric: ``scale`` (a number or one per dimension), or with
+    ``scale=None`` the ``high - low`` of the observation bounds (``obs_bounds`` or the space's).
+
+    Raises:
+        ValueError: both ``scale`` and ``obs_bounds`` given; a scale that is not finite and > 0; bounds
+            that are not finite (see :func:`resolve_bounds`).
+    """
+    n = space.shape[0]  # type: ignore[index]
+    if scale is not None and obs_bounds is not None:
+        raise ValueError(
+            "give scale or obs_bounds, not both (avq-paper sets scale=1, the paper's plain distance: "
+            "pass scale=None with obs_bounds to scale by bounds instead)"
+        )
+    if scale is None:
+        low, high = resolve_bounds(space, obs_bounds)
+        return high - low
+    try:
+        s = np.broadcast_to(np.asarray(scale, dtype=np.float64), (n,)).copy()
+    except (ValueError, TypeError):
+        raise ValueError(f"scale must be a number or {n} numbers, not {scale!r}") from None
+    bad = np.flatnonzero(~(np.isfinite(s) & (s > 0)))
+    if bad.size:
+        raise ValueError(f"scale must be finite and > 0; dimension {int(bad[0])} has {s[bad[0]]}")
+    return s
 
 
 def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] | None] | None:

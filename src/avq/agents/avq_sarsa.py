@@ -13,7 +13,7 @@ from numba.core.errors import TypingError
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
-from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -198,7 +198,7 @@ class AVQSarsa(BaseAgent):
         self.scale = scale
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        self._scale = self._resolve_scale(scale, self.obs_bounds)
+        self._scale = resolve_scale(self.env.observation_space, scale, self.obs_bounds)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -209,26 +209,6 @@ class AVQSarsa(BaseAgent):
         """The metric's scale in force, one number per dimension: ``scale``, or with ``scale=None`` the
         ``high - low`` of the observation bounds (``obs_bounds`` or the space's)."""
         return self._scale.copy()
-
-    def _resolve_scale(self, scale: Any, obs_bounds: Any) -> np.ndarray:
-        space = self.env.observation_space
-        n = space.shape[0]
-        if scale is not None and obs_bounds is not None:
-            raise ValueError(
-                "give scale or obs_bounds, not both (avq-paper sets scale=1, the paper's plain distance: "
-                "pass scale=None with obs_bounds to scale by bounds instead)"
-            )
-        if scale is None:
-            low, high = resolve_bounds(space, obs_bounds)
-            return high - low
-        try:
-            s = np.broadcast_to(np.asarray(scale, dtype=np.float64), (n,)).copy()
-        except (ValueError, TypeError):
-            raise ValueError(f"scale must be a number or {n} numbers, not {scale!r}") from None
-        bad = np.flatnonzero(~(np.isfinite(s) & (s > 0)))
-        if bad.size:
-            raise ValueError(f"scale must be finite and > 0; dimension {int(bad[0])} has {s[bad[0]]}")
-        return s
 
     # -- learned state ------------------------------------------------------------------
     @property

@@ -25,9 +25,11 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 
 from avq.agents.actions import ActionCodebookSarsa
+from avq.agents.avq_plan import PlanningAVQ
 from avq.agents.avq_sarsa import AVQSarsa
 from avq.agents.base import BaseAgent
 from avq.agents.grid import GridSarsa
+from avq.agents.sweeping import PrioritizedSweeping
 from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
@@ -37,7 +39,8 @@ __all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "TASK_DEFAULTS", "ag
 #: name -> the agent's class.
 CLASSES: dict[str, type[BaseAgent]] = {
     "avq-paper": AVQSarsa, "avq": AVQSarsa, "avq-maze": AVQSarsa, "tabular": TabularSarsa, "grid": GridSarsa,
-    "tiles": TileSarsa, "avq-actions": ActionCodebookSarsa, "uniform-actions": ActionCodebookSarsa,
+    "tiles": TileSarsa, "tabular-ps": PrioritizedSweeping, "avq-plan": PlanningAVQ,
+    "avq-actions": ActionCodebookSarsa, "uniform-actions": ActionCodebookSarsa,
 }
 
 # Beyond the paper, for tasks that report collisions (mazes, robots): the paper's
@@ -83,6 +86,18 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     "avq-maze": {"*": _AVQ_MAZE},
     "tabular": {
         "*": dict(alpha=0.1, lam=0.7, gamma=1.0, epsilon=0.1, q_init=0.0, traces="replacing"),
+    },
+    # Model-based: prioritized sweeping on one state per observation, optimistic about untried pairs
+    # (worth the grid maze's goal reward), undiscounted as the paper's task, values floored at -10,000
+    # (below any return of an episode on avq's mazes). n_backups: see docs/RESULTS.md, "Planning".
+    "tabular-ps": {
+        "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=1e-6),
+    },
+    # AVQ with a model of its cells and planning over it (docs/RESULTS.md, "Planning").
+    "avq-plan": {
+        "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=1e-6,
+                  d_min=0.05, collision_growth=True, outcome_split=True, split_threshold=5.0, memory=20_000,
+                  scale=None, max_cells=10_000),
     },
     # The baselines. Their defaults were chosen by a quick measurement, described here with its
     # figures (the script is not in the repository): MountainCar-v0 (200-step limit) and CartPole-v1

@@ -1,0 +1,344 @@
+"""A learned model of (state, action) -> successor, and prioritized sweeping over it.
+
+One implementation serves every model-based agent: ``tabular-ps`` (a state is a distinct
+observation, a transition one environment step) and ``avq-plan`` (a state is a cell of the
+codebook, a transition one aggregate transition of SPEC §2, ``k`` steps long). The model keeps,
+for each pair ``(s, a)``, the number of transitions ``n(s, a)``, the sum of their returns, and for
+each successor ``s'`` seen the sum of the discounts ``gamma ** k`` of the transitions that reached
+it (a terminal successor is ``-1``, worth 0). So the model is right for stochastic tasks and for
+transitions of any duration (an SMDP step):
+
+    Q(s, a) = ( sum R + sum_{s'} (sum gamma ** k to s') * V(s') ) / n(s, a)      V(s) = max_a Q(s, a)
+
+**Optimism** (R-max): a pair tried fewer than ``known`` times leads to a fictitious absorbing
+state worth ``v_opt``: ``Q(s, a) = v_opt``. A new state has every action unknown. **A floor**
+``v_min`` bounds every known value from below, so that a model that loops for ever at a loss
+(a cell whose every action comes back to it, with ``gamma = 1``) converges instead of falling
+without end.
+
+**Prioritized sweeping** (Moore & Atkeson 1993): after a transition is recorded, its state is
+backed up at once; whenever a backup changes ``V(s)`` by ``dv``, each predecessor pair
+``(q, b)`` of ``s`` is queued with priority ``dv * (discount mass from (q, b) to s) / n(q, b)``
+if that exceeds ``tol``. Then at most ``budget`` queued states, highest priority first, are
+backed up (every action of the state). What the budget leaves in the queue stays for the next
+call, so values converge over the following steps; the queue is empty when they have (to
+``tol``). The model follows transitions that are removed as well as added (``sign = -1``),
+which is how ``avq-plan`` re-maps its remembered transitions when its cells change.
+
+Arrays (capacity ``S`` states, ``m`` actions, ``E`` edges), held by :class:`Model`:
+``cnt`` ``(S, m)`` transitions per pair; ``rsum`` ``(S, m)`` their returns; ``head`` ``(S, m)``
+the first edge of the pair's successor list; ``Q`` ``(S, m)``, ``V`` ``(S,)`` the planned values;
+edges ``e_to``, ``e_next``, ``e_n`` (transitions), ``e_disc`` (discount mass); predecessors, one
+entry per edge into a state: ``p_head`` ``(S,)``, ``p_sa`` (``q * m + b``), ``p_edge``, ``p_next``;
+the queue: ``heap``, ``hpos`` (place in the heap or -1), ``prio``; counters ``C`` and float
+parameters ``MP`` (index names below).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+__all__ = ["Model", "ModelArrays"]
+
+# C: int counters and parameters
+N_STATES, N_EDGES, N_PREDS, HEAP_N, BACKUPS, KNOWN = range(6)
+N_C = 6
+# MP: float parameters
+V_OPT, V_MIN, TOL = range(3)
+N_MP = 3
+#: The priority that makes a state's backup come first.
+FIRST = 1e300
+
+
+class ModelArrays(NamedTuple):
+    """The model's arrays, in the order the compiled functions take them."""
+
+    cnt: np.ndarray
+    rsum: np.ndarray
+    head: np.ndarray
+    Q: np.ndarray
+    V: np.ndarray
+    e_to: np.ndarray
+    e_next: np.ndarray
+    e_n: np.ndarray
+    e_disc: np.ndarray
+    p_head: np.ndarray
+    p_sa: np.ndarray
+    p_edge: np.ndarray
+    p_next: np.ndarray
+    heap: np.ndarray
+    hpos: np.ndarray
+    prio: np.ndarray
+    C: np.ndarray
+    MP: np.ndarray
+
+
+def _empty(states: int, m: int, edges: int, v_opt: float) -> ModelArrays:
+    return ModelArrays(
+        cnt=np.zeros((states, m), dtype=np.int64), rsum=np.zeros((states, m)),
+        head=np.full((states, m), -1, dtype=np.int64), Q=np.full((states, m), v_opt), V=np.full(states, v_opt),
+        e_to=np.zeros(edges, dtype=np.int64), e_next=np.zeros(edges, dtype=np.int64),
+        e_n=np.zeros(edges, dtype=np.int64), e_disc=np.zeros(edges),
+        p_head=np.full(states, -1, dtype=np.int64), p_sa=np.zeros(edges, dtype=np.int64),
+        p_edge=np.zeros(edges, dtype=np.int64), p_next=np.zeros(edges, dtype=np.int64),
+        heap=np.zeros(states, dtype=np.int64), hpos=np.full(states, -1, dtype=np.int64), prio=np.zeros(states),
+        C=np.zeros(N_C, dtype=np.int64), MP=np.zeros(N_MP),
+    )
+
+
+class Model:
+    """The learned model and its planner's state, growing as states and successors appear.
+
+    Args:
+        m: Number of actions.
+        v_opt: Value of a pair tried fewer than ``known`` times (optimism).
+        v_min: Floor of every known value.
+        known: Transitions after which a pair's own statistics replace ``v_opt``.
+        tol: Smallest change of a value that is propagated.
+    """
+
+    def __init__(self, m: int, v_opt: float, v_min: float, known: int, tol: float, states: int = 64) -> None:
+        self.m = m
+        self.a = _empty(states, m, 4 * states, v_opt)
+        self.a.MP[:] = v_opt, v_min, tol
+        self.a.C[KNOWN] = known
+
+    @property
+    def n_states(self) -> int:
+        return int(self.a.C[N_STATES])
+
+    @property
+    def backups(self) -> int:
+        """Backups done so far (every one, the immediate backup of a recorded transition's state included)."""
+        return int(self.a.C[BACKUPS])
+
+    @property
+    def queued(self) -> int:
+        """States waiting in the queue: 0 when the values have converged (to ``tol``)."""
+        return int(self.a.C[HEAP_N])
+
+    def reserve(self, states: int = 0, edges: int = 0) -> None:
+        """Room for ``states`` more states and ``edges`` more edges (doubling)."""
+        a = self.a
+        need_s, need_e = int(a.C[N_STATES]) + states, int(a.C[N_EDGES]) + edges
+        cap_s, cap_e = a.cnt.shape[0], a.e_to.shape[0]
+        if need_s <= cap_s and need_e <= cap_e:
+            return
+        new = _empty(max(cap_s, need_s if need_s <= cap_s else max(need_s, 2 * cap_s)),
+                     self.m, max(cap_e, need_e if need_e <= cap_e else max(need_e, 2 * cap_e)), float(a.MP[V_OPT]))
+        for old, arr in zip(a, new):
+            arr[: len(old)] = old
+        self.a = new
+
+    def add_state(self) -> int:
+        """A new state, every action unknown (worth ``v_opt``)."""
+        self.reserve(states=1)
+        return add_state(*self.a)
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """The arrays in use, for a model file."""
+        a, s, e = self.a, self.n_states, int(self.a.C[N_EDGES])
+        return {"m_" + name: arr[: {"S": s, "E": e, "-": len(arr)}[_DIM[name]]].copy()
+                for name, arr in zip(ModelArrays._fields, a)}
+
+    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
+        """Restore what :meth:`state_dict` gave (shapes are checked by the caller's file format)."""
+        C = arrays["m_C"]
+        self.reserve(states=int(C[N_STATES]), edges=int(C[N_EDGES]))
+        for name, arr in zip(ModelArrays._fields, self.a):
+            src = arrays["m_" + name]
+            if src.shape[1:] != arr.shape[1:] or len(src) > len(arr):
+                raise ValueError(f"model array {name} has shape {src.shape}, which does not fit {arr.shape}")
+            arr[: len(src)] = src
+
+
+#: Which capacity each array's first dimension follows: states, edges, or its own length.
+_DIM = {"cnt": "S", "rsum": "S", "head": "S", "Q": "S", "V": "S", "e_to": "E", "e_next": "E", "e_n": "E",
+        "e_disc": "E", "p_head": "S", "p_sa": "E", "p_edge": "E", "p_next": "E", "heap": "S", "hpos": "S",
+        "prio": "S", "C": "-", "MP": "-"}
+
+
+@njit(cache=True)
+def add_state(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
+              C, MP) -> int:
+    s = C[N_STATES]
+    for a in range(Q.shape[1]):
+        cnt[s, a] = 0
+        rsum[s, a] = 0.0
+        head[s, a] = -1
+        Q[s, a] = MP[V_OPT]
+    V[s] = MP[V_OPT]
+    p_head[s] = -1
+    hpos[s] = -1
+    C[N_STATES] = s + 1
+    return s
+
+
+@njit(cache=True, inline="always")
+def backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s: int) -> float:
+    """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
+    best = -np.inf
+    for a in range(Q.shape[1]):
+        n = cnt[s, a]
+        if n < C[KNOWN]:
+            q = MP[V_OPT]
+        else:
+            total = rsum[s, a]
+            e = head[s, a]
+            while e >= 0:
+                t = e_to[e]
+                if t >= 0:
+                    total += e_disc[e] * V[t]
+                e = e_next[e]
+            q = total / n
+            if q < MP[V_MIN]:
+                q = MP[V_MIN]
+        Q[s, a] = q
+        if q > best:
+            best = q
+    change = abs(best - V[s])
+    V[s] = best
+    C[BACKUPS] += 1
+    return change
+
+
+@njit(cache=True, inline="always")
+def _swap(heap, hpos, i: int, j: int) -> None:
+    si, sj = heap[i], heap[j]
+    heap[i], heap[j] = sj, si
+    hpos[sj], hpos[si] = i, j
+
+
+@njit(cache=True, inline="always")
+def _sift_up(heap, hpos, prio, i: int) -> None:
+    while i > 0:
+        parent = (i - 1) // 2
+        if prio[heap[parent]] >= prio[heap[i]]:
+            return
+        _swap(heap, hpos, i, parent)
+        i = parent
+
+
+@njit(cache=True, inline="always")
+def push(heap, hpos, prio, C, s: int, p: float) -> None:
+    """Queue ``s`` with priority ``p``, or raise its priority to ``p``."""
+    i = hpos[s]
+    if i < 0:
+        i = C[HEAP_N]
+        heap[i] = s
+        hpos[s] = i
+        prio[s] = p
+        C[HEAP_N] = i + 1
+    elif p > prio[s]:
+        prio[s] = p
+    else:
+        return
+    _sift_up(heap, hpos, prio, i)
+
+
+@njit(cache=True, inline="always")
+def pop(heap, hpos, prio, C) -> int:
+    """The queued state of highest priority, taken off the queue."""
+    top = heap[0]
+    n = C[HEAP_N] - 1
+    C[HEAP_N] = n
+    hpos[top] = -1
+    if n > 0:
+        last = heap[n]
+        heap[0] = last
+        hpos[last] = 0
+        i = 0
+        while True:
+            left = 2 * i + 1
+            if left >= n:
+                break
+            best = left
+            if left + 1 < n and prio[heap[left + 1]] > prio[heap[left]]:
+                best = left + 1
+            if prio[heap[best]] <= prio[heap[i]]:
+                break
+            _swap(heap, hpos, i, best)
+            i = best
+    return top
+
+
+@njit(cache=True, inline="always")
+def propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s: int, dv: float) -> None:
+    """Queue each known predecessor pair's state of ``s`` by how much ``V[s]``'s change ``dv`` moves it."""
+    m = cnt.shape[1]
+    k = p_head[s]
+    while k >= 0:
+        q = p_sa[k] // m
+        b = p_sa[k] - q * m
+        e = p_edge[k]
+        n = cnt[q, b]
+        if n >= C[KNOWN] and e_n[e] > 0:
+            p = dv * e_disc[e] / n
+            if p > MP[TOL]:
+                push(heap, hpos, prio, C, q, p)
+        k = p_next[k]
+
+
+@njit(cache=True)
+def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
+          budget: int) -> int:
+    """Back up at most ``budget`` queued states, highest priority first; return how many."""
+    done = 0
+    while C[HEAP_N] > 0 and done < budget:
+        s = pop(heap, hpos, prio, C)
+        dv = backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s)
+        done += 1
+        if dv > MP[TOL]:
+            propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s, dv)
+    return done
+
+
+@njit(cache=True, inline="always")
+def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, s: int, a: int, r: float,
+           disc: float, s2: int, sign: int) -> None:
+    """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal) of return ``r`` and
+    discount ``disc``. A successor seen for the first time takes an edge (and a predecessor entry):
+    the caller makes room for one."""
+    m = cnt.shape[1]
+    cnt[s, a] += sign
+    rsum[s, a] += sign * r
+    if cnt[s, a] == 0:
+        rsum[s, a] = 0.0  # (no rounding left over from removed returns)
+    e = head[s, a]
+    while e >= 0 and e_to[e] != s2:
+        e = e_next[e]
+    if e < 0:
+        e = C[N_EDGES]
+        C[N_EDGES] = e + 1
+        e_to[e] = s2
+        e_next[e] = head[s, a]
+        head[s, a] = e
+        e_n[e] = 0
+        e_disc[e] = 0.0
+        if s2 >= 0:
+            k = C[N_PREDS]
+            C[N_PREDS] = k + 1
+            p_sa[k] = s * m + a
+            p_edge[k] = e
+            p_next[k] = p_head[s2]
+            p_head[s2] = k
+    e_n[e] += sign
+    e_disc[e] += sign * disc
+    if e_n[e] == 0:
+        e_disc[e] = 0.0
+
+
+@njit(cache=True)
+def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
+            s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
+    """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), back
+    up ``s`` at once and sweep at most ``budget`` more states. Returns the backups done."""
+    record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
+    dv = backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s)
+    if dv > MP[TOL]:
+        propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s, dv)
+    return 1 + sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos,
+                     prio, C, MP, budget)

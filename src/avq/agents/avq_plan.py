@@ -1,0 +1,233 @@
+"""AVQ with a learned model of its cells and planning over it (``avq-plan``)."""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from avq._validate import check_bool, check_int, check_range
+from avq.agents import _model
+from avq.agents import _plan_core as core
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.sweeping import check_planning_params
+from avq.quantizer import Codebook
+
+__all__ = ["PlanningAVQ"]
+
+
+class PlanningAVQ(BaseAgent):
+    """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
+
+    It acts as AVQ does: one decision per cell of a growing codebook, repeated until the cell
+    changes, a collision, or the end of the episode (SPEC §2). Each such aggregate transition is
+    recorded in a model of the cells (successor counts, mean return and discount, so one
+    decision is an SMDP step), and the values are planned from the model by prioritized sweeping
+    with ``n_backups`` backups per transition (:mod:`avq.agents._model`). Pairs of a cell and an
+    action tried fewer than ``known_after`` times are worth ``v_opt``, so the agent tries each
+    decision of each cell: it explores coarse to fine. Cells grow by the paper's collision rule
+    and where a decision's outcome disagrees with the model (:mod:`avq.agents._plan_core`).
+
+    Args:
+        env: A Gymnasium environment (or registered id) with a ``Box`` observation space and
+            ``Discrete`` actions.
+        gamma, epsilon, v_opt, v_min, known_after, n_backups, tol: the planner's, as in
+            :class:`avq.agents.sweeping.PrioritizedSweeping`.
+        d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
+        collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
+            vector, append the observation (SPEC §3).
+        outcome_split: Append the observation that started a transition whose outcome, valued by
+            the model, differs from the model's value of the decision by more than ``split_threshold``.
+        split_threshold: That difference, > 0.
+        memory: Aggregate transitions remembered, from which the model follows the cells as they
+            change (the oldest is forgotten beyond it).
+        scale: Per-dimension scale of the metric (a number or one per dimension); None: ``high - low``
+            of the observation bounds.
+        obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
+        max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
+        seed: Seed of every random choice the agent makes and of the environment's first reset.
+
+    Attributes:
+        codebook_: ``(p, n)`` codebook vectors.
+        q_: ``(p, m)`` planned values of the cells' decisions (``v_opt`` where not yet known).
+        n_cells: ``p``.
+        backups_: backups done so far; ``queued_``: cells waiting in the planner's queue.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env | str,
+        *,
+        gamma: float = 1.0,
+        epsilon: float = 0.0,
+        v_opt: float = 10.0,
+        v_min: float = -10_000.0,
+        known_after: int = 1,
+        n_backups: int = 100,
+        tol: float = 1e-6,
+        d_min: float = 0.05,
+        collision_growth: bool = True,
+        outcome_split: bool = True,
+        split_threshold: float = 5.0,
+        memory: int = 20_000,
+        scale: float | Sequence[float] | None = None,
+        obs_bounds: Sequence[Sequence[float] | None] | None = None,
+        max_cells: int = 10_000,
+        seed: int | None = None,
+    ) -> None:
+        check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol)
+        self.d_min = check_range("d_min", d_min, 0.0, np.inf, high_open=True)
+        self.collision_growth = check_bool("collision_growth", collision_growth)
+        self.outcome_split = check_bool("outcome_split", outcome_split)
+        self.split_threshold = check_range("split_threshold", split_threshold, 0.0, np.inf, low_open=True,
+                                           high_open=True)
+        self.memory = check_int("memory", memory, 1)
+        self.max_cells = check_int("max_cells", max_cells, 1)
+        self.scale = scale
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        super().__init__(env, seed)
+        self._scale = resolve_scale(self.env.observation_space, scale, self.obs_bounds)
+
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        check_box_discrete("PlanningAVQ", obs_space, act_space, "there is nothing to quantize")
+
+    @property
+    def scale_(self) -> np.ndarray:
+        """The metric's scale in force."""
+        return self._scale.copy()
+
+    # -- learned state ------------------------------------------------------------------
+    @property
+    def n_cells(self) -> int:
+        return int(self._S[core.SIZE]) if self._is_setup else 0
+
+    @property
+    def codebook_(self) -> np.ndarray:
+        return self._V[: self.n_cells].copy()
+
+    @property
+    def q_(self) -> np.ndarray:
+        return self._model.a.Q[: self.n_cells].copy()
+
+    @property
+    def backups_(self) -> int:
+        return self._model.backups
+
+    @property
+    def queued_(self) -> int:
+        return self._model.queued
+
+    def _setup(self) -> None:
+        n = self.env.observation_space.shape[0]
+        self._V = np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n))
+        self._inv_scale = 1.0 / self._scale
+        self._P = np.zeros(core.N_P)
+        self._P[[core.GAMMA, core.EPS, core.DMIN, core.SPLIT_THRESHOLD]] = (
+            self.gamma, self.epsilon, self.d_min, self.split_threshold)
+        self._IP = np.zeros(core.N_IP, dtype=np.int64)
+        self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY]] = (
+            self.max_cells, self.n_backups, self.collision_growth, self.outcome_split, self.memory)
+        self._S = np.zeros(core.N_S, dtype=np.int64)
+        self._F = np.zeros(core.N_F)
+        self._xs = np.zeros(n)
+        self._mem_x = np.zeros((self.memory, 2 * n))
+        self._mem_i = np.zeros((self.memory, 3), dtype=np.int64)
+        self._mem_f = np.zeros((self.memory, 2))
+        self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
+
+    def _make_room(self) -> None:
+        """Room for the cells and edges one step may add (the kernels never reallocate)."""
+        size, cap = int(self._S[core.SIZE]), self._V.shape[0]
+        if size + core.APPENDS_PER_STEP > cap:
+            new = np.zeros((max(2 * cap, size + core.APPENDS_PER_STEP), self._V.shape[1]))
+            new[:cap] = self._V
+            self._V = new
+        self._model.reserve(states=core.APPENDS_PER_STEP,
+                            edges=core.APPENDS_PER_STEP * (int(self._S[core.MEM_N]) + 1))
+
+    def _arrays(self) -> tuple:
+        return (self._V, self._inv_scale, self._P, self._IP, self._S, self._F, self._xs, self._mem_x, self._mem_i,
+                self._mem_f, *self._model.a)
+
+    # -- the episode loop -----------------------------------------------------------------
+    def _begin_episode(self, obs: Any) -> None:
+        x = self._as_obs(obs, 0)
+        self._make_room()
+        self._draws.reserve()
+        if core.start(*self._arrays(), self._draws.src, x) == core.NOT_FINITE:
+            self._refuse_non_finite(obs, 0.0, 0)
+
+    def _as_obs(self, obs: Any, step: int) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self._xs.shape:
+            raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._xs.shape}")
+        return x
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        env_step, S, draws = self.env.step, self._S, self._draws
+        a = int(S[core.ACTION])
+        n = 0
+        while n < max_steps:
+            obs, r, terminated, truncated, info = env_step(a)
+            n += 1
+            x = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+            try:
+                r = float(r)
+            except (TypeError, ValueError):
+                raise ValueError(f"reward {r!r} at step {int(S[core.EP_STEPS]) + 1} of episode "
+                                 f"{self.num_episodes + 1} is not a number") from None
+            self._make_room()
+            draws.reserve()
+            a = core.step(*self._arrays(), draws.src, x, r, bool(info.get("collision", False)), bool(terminated),
+                          bool(truncated))
+            if a == core.NOT_FINITE:
+                self._refuse_non_finite(obs, r, int(S[core.EP_STEPS]) + 1)
+            if a == core.ENDED:
+                return n, True
+        return n, False
+
+    def _end_episode(self) -> EpisodeRecord:
+        S = self._S
+        return episode_record(S[core.EP_STEPS], self._F[core.EP_RETURN], S[core.SIZE], S[core.APPENDS], 0,
+                              S[core.REFUSED], S[core.DECISIONS])
+
+    # -- queries -----------------------------------------------------------------------------
+    def cells(self, observations: np.ndarray) -> np.ndarray:
+        """The cell index of each observation (a batch ``(b, n)``)."""
+        if self.n_cells == 0:
+            raise RuntimeError("PlanningAVQ has no codebook yet; call learn() first")
+        return Codebook.from_vectors(self._V[: self.n_cells], self._scale).nearest_batch(
+            np.asarray(observations, dtype=np.float64))
+
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        if self.n_cells == 0:
+            return np.zeros(len(obs), dtype=np.int64)
+        return self._model.a.Q[self.cells(obs)].argmax(axis=1).astype(np.int64)
+
+    # -- saving ---------------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        meta, arrays = super()._state_dict()
+        arrays.update(codebook=self.codebook_, S=self._S.copy(), F=self._F.copy(), xs=self._xs.copy(),
+                      mem_x=self._mem_x.copy(), mem_i=self._mem_i.copy(), mem_f=self._mem_f.copy())
+        arrays.update(self._model.state_dict())
+        return meta, arrays
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        super()._load_state_dict(meta, arrays)
+        for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f"):
+            mine = getattr(self, "_" + name)
+            if arrays[name].shape != mine.shape:
+                raise ValueError(f"array {name} has shape {arrays[name].shape}; expected {mine.shape}")
+            mine[:] = arrays[name]
+        codebook = arrays["codebook"]
+        if codebook.shape != (int(self._S[core.SIZE]), self._V.shape[1]):
+            raise ValueError(f"array codebook has shape {codebook.shape}; expected "
+                             f"({int(self._S[core.SIZE])}, {self._V.shape[1]})")
+        self._make_room()
+        while self._V.shape[0] < len(codebook) + core.APPENDS_PER_STEP:
+            self._V = np.concatenate([self._V, np.zeros_like(self._V)])
+        self._V[: len(codebook)] = codebook
+        self._model.load_state_dict(arrays)

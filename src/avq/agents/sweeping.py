@@ -1,0 +1,217 @@
+"""Prioritized sweeping (Moore & Atkeson 1993) on one state per distinct observation: the model-based
+baseline ``tabular-ps``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numba import njit
+
+from avq._validate import check_int, check_range
+from avq.agents import _model
+from avq.agents._td import epsilon_greedy
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+
+__all__ = ["PrioritizedSweeping", "check_planning_params"]
+
+
+def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_min: Any, known_after: Any,
+                          n_backups: Any, tol: Any) -> None:
+    """Check and store the hyper-parameters every planning agent shares."""
+    agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
+    agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
+    agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
+    agent.v_min = check_range("v_min", v_min, -np.inf, agent.v_opt, low_open=True)
+    agent.known_after = check_int("known_after", known_after, 1)
+    agent.n_backups = check_int("n_backups", n_backups, 0)
+    agent.tol = check_range("tol", tol, 0.0, np.inf, low_open=True, high_open=True)
+
+
+class PrioritizedSweeping(BaseAgent):
+    """Model-based RL: a learned model of every (observation, action) pair and prioritized sweeping over it.
+
+    Each distinct observation is a state (as in ``tabular``). The model counts, for each pair, its
+    successors and the mean reward (:mod:`avq.agents._model`), so it is right for stochastic tasks.
+    A pair tried fewer than ``known_after`` times is worth ``v_opt`` (optimism, as in R-max: the agent
+    goes to try it). After every step the pair's state is backed up from the model and at most
+    ``n_backups`` more states, those whose values the change moves most, are backed up; the queue
+    carries over to the next step. Actions are greedy on the planned values (ε-greedy with
+    ``epsilon`` > 0), ties broken at random.
+
+    Args:
+        env: A Gymnasium environment (or registered id) with ``Discrete`` actions and a ``Discrete`` or
+            ``Box`` observation space whose observations repeat exactly (the grid maze's ``(x, y)``).
+        gamma: Discount γ of the planned values, in [0, 1]. With γ = 1 the values of a task whose
+            rewards can be positive along a cycle do not converge; ``v_min`` bounds them from below.
+        epsilon: Exploration rate on top of optimism, in [0, 1].
+        v_opt: Value of a pair not yet known: at least what the best return could be (on the grid maze,
+            the goal's reward, 10).
+        v_min: Floor of every known value (below any true value of the task).
+        known_after: Transitions after which a pair's own statistics replace ``v_opt`` (1: at once, right
+            for deterministic tasks; more for noisy ones).
+        n_backups: Backups per step beyond the one of the pair just tried (0: no planning beyond it).
+        tol: Smallest change of a value that is propagated to its predecessors.
+        max_states: Upper bound on the number of states; an observation beyond it is an error.
+        seed: Seed of every random choice the agent makes and of the env's first reset.
+
+    Attributes:
+        q_: ``(k, m)`` planned action values, one row per observation seen.
+        states_: ``(k, n)`` the observations, in the order first seen (Box spaces).
+        n_cells: ``k``.
+        backups_: backups done so far; ``queued_``: states waiting in the queue (0: converged).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env | str,
+        *,
+        gamma: float = 1.0,
+        epsilon: float = 0.0,
+        v_opt: float = 10.0,
+        v_min: float = -10_000.0,
+        known_after: int = 1,
+        n_backups: int = 100,
+        tol: float = 1e-6,
+        max_states: int = 1_000_000,
+        seed: int | None = None,
+    ) -> None:
+        check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol)
+        self.max_states = check_int("max_states", max_states, 1)
+        super().__init__(env, seed)
+
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        if not isinstance(act_space, spaces.Discrete):
+            raise ValueError(f"PrioritizedSweeping needs a Discrete action space, not {act_space}")
+        if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
+            raise ValueError(f"PrioritizedSweeping needs a Discrete or Box observation space, not {obs_space}")
+        self._discrete = isinstance(obs_space, spaces.Discrete)
+
+    # -- learned state ------------------------------------------------------------------
+    @property
+    def n_cells(self) -> int:
+        return self._model.n_states if self._is_setup else 0
+
+    @property
+    def q_(self) -> np.ndarray:
+        return self._model.a.Q[: self.n_cells].copy()
+
+    @property
+    def states_(self) -> np.ndarray:
+        return np.array(self._keys, dtype=np.float64).reshape(len(self._keys), -1)
+
+    @property
+    def backups_(self) -> int:
+        return self._model.backups
+
+    @property
+    def queued_(self) -> int:
+        return self._model.queued
+
+    def _setup(self) -> None:
+        self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
+        self._index: dict[Any, int] = {}
+        self._keys: list[Any] = []
+        self._ep_row = self._ep_action = self._ep_steps = self._ep_new = 0
+        self._ep_return = 0.0
+
+    def _key(self, obs: Any) -> Any:
+        if self._discrete:
+            return int(obs)
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self.env.observation_space.shape:
+            raise ValueError(f"observation has shape {x.shape}; the space says {self.env.observation_space.shape}")
+        return tuple(x.tolist())
+
+    def _row(self, obs: Any, create: bool = True) -> int:
+        key = self._key(obs)
+        row = self._index.get(key)
+        if row is not None or not create:
+            return -1 if row is None else row
+        if len(self._keys) >= self.max_states:
+            raise ValueError(f"PrioritizedSweeping has seen {len(self._keys)} distinct observations (max_states); "
+                             "the observation space is too fine for a table: use an AVQ agent")
+        row = self._model.add_state()
+        self._index[key] = row
+        self._keys.append(key)
+        self._ep_new += 1
+        return row
+
+    # -- the episode loop -----------------------------------------------------------------
+    def _begin_episode(self, obs: Any) -> None:
+        self._ep_steps = self._ep_new = 0
+        self._ep_return = 0.0
+        self._check_finite(obs, 0.0, 0)
+        self._ep_row = self._row(obs)
+        self._ep_action = self._decide(self._model.a.Q[self._ep_row])
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        draws, model = self._draws, self._model
+
+        def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:
+            s2 = self._row(obs)
+            model.reserve(edges=1)
+            draws.reserve()
+            return s2, int(model_step(*model.a, draws.src, s, a, r, self.gamma, s2, terminated, self.epsilon,
+                                      self.n_backups))
+
+        self._ep_row, self._ep_action, n, ended = self._sarsa_steps(max_steps, self._ep_row, self._ep_action, update)
+        return n, ended
+
+    def _end_episode(self) -> EpisodeRecord:
+        return episode_record(self._ep_steps, self._ep_return, self.n_cells, self._ep_new)
+
+    # -- queries ----------------------------------------------------------------------------
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        if self._discrete:
+            space = self.env.observation_space
+            bad = [o for o in obs if o != int(o) or not space.contains(int(o))]
+            if bad:
+                raise ValueError(f"observation {bad[0]!r} is not in the observation space {space}")
+        out = np.zeros(len(obs), dtype=np.int64)
+        Q = self._model.a.Q
+        for b, o in enumerate(obs):
+            row = self._row(o, create=False)
+            if row >= 0:
+                out[b] = int(Q[row].argmax())
+        return out
+
+    def _obs_shape(self) -> tuple[int, ...]:
+        return () if self._discrete else super()._obs_shape()
+
+    # -- saving -----------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        meta, arrays = super()._state_dict()
+        meta["episode"] = [self._ep_row, self._ep_action, self._ep_steps, self._ep_new, self._ep_return]
+        arrays["states"] = self.states_
+        arrays.update(self._model.state_dict())
+        return meta, arrays
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        super()._load_state_dict(meta, arrays)
+        states = arrays["states"]
+        self._model.load_state_dict(arrays)
+        if len(states) != self._model.n_states:
+            raise ValueError(f"{len(states)} observations for a model of {self._model.n_states} states")
+        for row, x in enumerate(states):
+            key = int(x[0]) if self._discrete else tuple(float(v) for v in x)
+            self._index[key] = row
+            self._keys.append(key)
+        row, action, steps, new, ret = meta["episode"]
+        self._ep_row, self._ep_action, self._ep_steps, self._ep_new = int(row), int(action), int(steps), int(new)
+        self._ep_return = float(ret)
+
+
+@njit(cache=True)
+def model_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
+               C, MP, src, s, a, r, gamma, s2, terminated, epsilon, budget) -> int:
+    """One step of prioritized sweeping: record ``(s, a) -> s2`` with reward ``r`` (terminal: no successor),
+    plan (:func:`avq.agents._model.observe`), then the next action in ``s2`` (``a`` itself on a terminal
+    step, which draws nothing)."""
+    _model.observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos,
+                   prio, C, MP, s, a, r, gamma, -1 if terminated else s2, budget)
+    if terminated:
+        return a
+    return epsilon_greedy(src, Q, s2, epsilon)
