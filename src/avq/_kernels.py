@@ -56,6 +56,33 @@ def nearest_index(vectors: np.ndarray, size: int, x: np.ndarray, inv_scale: np.n
 
 
 @njit(cache=True, nogil=True)
+def nearest_batch_kernel(vectors: np.ndarray, size: int, xs: np.ndarray, inv_scale: np.ndarray,
+                         cand: np.ndarray) -> np.ndarray:
+    """:func:`nearest_index` of every row of ``xs``, with the very same arithmetic (so that a batch query and
+    the agent's own step agree on every tie). ``cand`` ``(b, k)``: look only among these candidates
+    (``k = 0``: among all ``size`` vectors); lowest index on ties among them."""
+    out = np.empty(xs.shape[0], dtype=np.int64)
+    n = xs.shape[1]
+    for q in range(xs.shape[0]):
+        if cand.shape[1] == 0:
+            out[q], _ = nearest_index(vectors, size, xs[q], inv_scale)
+            continue
+        best = size
+        best_d2 = np.inf
+        for c in range(cand.shape[1]):
+            k = cand[q, c]
+            s = 0.0
+            for d in range(n):
+                z = (vectors[k, d] - xs[q, d]) * inv_scale[d]
+                s += z * z
+            if s < best_d2 or (s == best_d2 and k < best):
+                best_d2 = s
+                best = k
+        out[q] = best
+    return out
+
+
+@njit(cache=True, nogil=True)
 def neighbours_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray):
     """For each of the first ``size`` vectors: nearest other (lowest index on ties), its distance,
     and the second-smallest distance (equal to the first when the nearest is not unique)."""

@@ -17,7 +17,7 @@ from typing import Sequence
 
 import numpy as np
 
-from avq._kernels import merge_kernel, mutual_nearest_pairs_kernel, nearest_index, neighbours_kernel
+from avq._kernels import merge_kernel, mutual_nearest_pairs_kernel, nearest_batch_kernel, nearest_index, neighbours_kernel
 
 __all__ = ["Codebook"]
 
@@ -71,31 +71,25 @@ class Codebook:
         return int(i), float(np.sqrt(d2))
 
     def nearest_batch(self, xs: np.ndarray) -> np.ndarray:
-        """Nearest-vector indices for each row of ``xs`` (``(b, n)``)."""
-        xs = np.asarray(xs, dtype=np.float64).reshape(-1, self.n_dims)
+        """Nearest-vector indices for each row of ``xs`` (``(b, n)``): what :meth:`nearest` gives for each,
+        ties included (the same arithmetic as the agents' compiled steps)."""
+        xs = np.ascontiguousarray(np.asarray(xs, dtype=np.float64).reshape(-1, self.n_dims))
         if self.size == 0:
             raise ValueError("the codebook is empty")
-        if self.size > _TREE_THRESHOLD:
-            from scipy.spatial import cKDTree
+        if self.size <= _TREE_THRESHOLD:
+            return nearest_batch_kernel(self._data, self.size, xs, self.inv_scale, np.zeros((len(xs), 0), np.int64))
+        from scipy.spatial import cKDTree
 
-            # The tree finds the nearest few; exact distances among them then pick the lowest index on
-            # ties, as nearest() does. A query whose candidates all tie may tie with more: brute force.
-            k = min(4, self.size)
-            tree = cKDTree(self.vectors * self.inv_scale)
-            _, cand = tree.query(xs * self.inv_scale, k=k)
-            cand = np.asarray(cand, dtype=np.int64).reshape(len(xs), k)
-            d2 = (((self.vectors[cand] - xs[:, None, :]) * self.inv_scale) ** 2).sum(axis=2)
-            best = d2.min(axis=1, keepdims=True)
-            out = np.where(d2 == best, cand, self.size).min(axis=1)
-            for q in np.flatnonzero((d2 == best).all(axis=1)):
-                out[q] = self.nearest(xs[q])[0]
-            return out
-        out = np.empty(len(xs), dtype=np.int64)
-        y = self.vectors * self.inv_scale
-        for start in range(0, len(xs), 1024):
-            chunk = xs[start:start + 1024] * self.inv_scale
-            d2 = ((chunk[:, None, :] - y[None, :, :]) ** 2).sum(axis=2)
-            out[start:start + 1024] = d2.argmin(axis=1)
+        # The tree finds the nearest few; exact distances among them then pick the lowest index on
+        # ties, as nearest() does. A query whose candidates all tie may tie with more: brute force.
+        k = min(4, self.size)
+        tree = cKDTree(self.vectors * self.inv_scale)
+        d_tree, cand = tree.query(xs * self.inv_scale, k=k)
+        cand = np.asarray(cand, dtype=np.int64).reshape(len(xs), k)
+        out = nearest_batch_kernel(self._data, self.size, xs, self.inv_scale, cand)
+        d_tree = np.asarray(d_tree).reshape(len(xs), k)
+        for q in np.flatnonzero(np.isclose(d_tree[:, 0], d_tree[:, -1], rtol=1e-9, atol=0.0)):
+            out[q] = self.nearest(xs[q])[0]
         return out
 
     def neighbours(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

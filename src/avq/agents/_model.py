@@ -28,7 +28,7 @@ which is how ``avq-plan`` re-maps its remembered transitions when its cells chan
 Arrays (capacity ``S`` states, ``m`` actions, ``E`` edges), held by :class:`Model`:
 ``cnt`` ``(S, m)`` transitions per pair; ``rsum`` ``(S, m)`` their returns; ``head`` ``(S, m)``
 the first edge of the pair's successor list; ``Q`` ``(S, m)``, ``V`` ``(S,)`` the planned values;
-edges ``e_to``, ``e_next``, ``e_n`` (transitions), ``e_disc`` (discount mass); predecessors, one
+edges ``e_to``, ``e_next``, ``e_n`` (transitions), ``e_disc`` (discount mass), ``e_r`` (returns); predecessors, one
 entry per edge into a state: ``p_head`` ``(S,)``, ``p_sa`` (``q * m + b``), ``p_edge``, ``p_next``;
 the queue: ``heap``, ``hpos`` (place in the heap or -1), ``prio``; counters ``C`` and float
 parameters ``MP`` (index names below).
@@ -65,6 +65,7 @@ class ModelArrays(NamedTuple):
     e_next: np.ndarray
     e_n: np.ndarray
     e_disc: np.ndarray
+    e_r: np.ndarray
     p_head: np.ndarray
     p_sa: np.ndarray
     p_edge: np.ndarray
@@ -81,7 +82,7 @@ def _empty(states: int, m: int, edges: int, v_opt: float) -> ModelArrays:
         cnt=np.zeros((states, m), dtype=np.int64), rsum=np.zeros((states, m)),
         head=np.full((states, m), -1, dtype=np.int64), Q=np.full((states, m), v_opt), V=np.full(states, v_opt),
         e_to=np.zeros(edges, dtype=np.int64), e_next=np.zeros(edges, dtype=np.int64),
-        e_n=np.zeros(edges, dtype=np.int64), e_disc=np.zeros(edges),
+        e_n=np.zeros(edges, dtype=np.int64), e_disc=np.zeros(edges), e_r=np.zeros(edges),
         p_head=np.full(states, -1, dtype=np.int64), p_sa=np.zeros(edges, dtype=np.int64),
         p_edge=np.zeros(edges, dtype=np.int64), p_next=np.zeros(edges, dtype=np.int64),
         heap=np.zeros(states, dtype=np.int64), hpos=np.full(states, -1, dtype=np.int64), prio=np.zeros(states),
@@ -157,12 +158,12 @@ class Model:
 
 #: Which capacity each array's first dimension follows: states, edges, or its own length.
 _DIM = {"cnt": "S", "rsum": "S", "head": "S", "Q": "S", "V": "S", "e_to": "E", "e_next": "E", "e_n": "E",
-        "e_disc": "E", "p_head": "S", "p_sa": "E", "p_edge": "E", "p_next": "E", "heap": "S", "hpos": "S",
+        "e_disc": "E", "e_r": "E", "p_head": "S", "p_sa": "E", "p_edge": "E", "p_next": "E", "heap": "S", "hpos": "S",
         "prio": "S", "C": "-", "MP": "-"}
 
 
 @njit(cache=True)
-def add_state(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
+def add_state(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
               C, MP) -> int:
     s = C[N_STATES]
     for a in range(Q.shape[1]):
@@ -283,7 +284,7 @@ def propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, 
 
 
 @njit(cache=True)
-def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
+def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
           budget: int) -> int:
     """Back up at most ``budget`` queued states, highest priority first; return how many."""
     done = 0
@@ -297,7 +298,7 @@ def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge
 
 
 @njit(cache=True, inline="always")
-def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, s: int, a: int, r: float,
+def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s: int, a: int, r: float,
            disc: float, s2: int, sign: int) -> None:
     """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal) of return ``r`` and
     discount ``disc``. A successor seen for the first time takes an edge (and a predecessor entry):
@@ -318,6 +319,7 @@ def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_n
         head[s, a] = e
         e_n[e] = 0
         e_disc[e] = 0.0
+        e_r[e] = 0.0
         if s2 >= 0:
             k = C[N_PREDS]
             C[N_PREDS] = k + 1
@@ -327,18 +329,38 @@ def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_n
             p_head[s2] = k
     e_n[e] += sign
     e_disc[e] += sign * disc
+    e_r[e] += sign * r
     if e_n[e] == 0:
         e_disc[e] = 0.0
+        e_r[e] = 0.0
+
+
+@njit(cache=True, inline="always")
+def outcome_spread(cnt, head, V, e_to, e_next, e_n, e_disc, e_r, s: int, a: int, value: float) -> float:
+    """How far ``value`` (an outcome of the pair ``(s, a)``) lies from the mean outcome of each successor
+    the model has seen for the pair, ``(sum R + sum gamma**k V(s')) / n`` per successor: the largest
+    difference (0 for a pair never tried)."""
+    worst = 0.0
+    e = head[s, a]
+    while e >= 0:
+        n = e_n[e]
+        if n > 0:
+            t = e_to[e]
+            v = (e_r[e] + (e_disc[e] * V[t] if t >= 0 else 0.0)) / n
+            if abs(value - v) > worst:
+                worst = abs(value - v)
+        e = e_next[e]
+    return worst
 
 
 @njit(cache=True)
-def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
+def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
             s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
     """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), back
     up ``s`` at once and sweep at most ``budget`` more states. Returns the backups done."""
-    record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
+    record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
     dv = backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s)
     if dv > MP[TOL]:
         propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s, dv)
-    return 1 + sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos,
+    return 1 + sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                      prio, C, MP, budget)

@@ -17,10 +17,11 @@ seen. The oldest transition leaves the model when the memory is full.
 * ``collision`` (the paper's rule, SPEC §3): on a collision at ``x`` farther than ``d_min`` from
   the cell's vector and from every vector, append ``x``. (Within ``d_min`` the paper sets
   ``Q[i, a] = chi``; here the model learns what the collision costs instead.)
-* ``outcome`` (parti-game's idea, Moore & Atkeson 1995): when a pair the model knows leads to an
-  outcome worth more than ``split_threshold`` away from what the model predicts for it
-  (``|R + gamma**k V(j) - Q(i, a)|``), the cell's squares disagree about that decision: append the
-  observation where the transition started (if farther than ``d_min`` from every vector).
+* ``outcome`` (after parti-game, Moore & Atkeson 1995): when a pair the model knows leads to an
+  outcome ``R + gamma**k V(j)`` more than ``split_threshold`` away from the mean outcome of one of
+  the successors it has led to before (:func:`avq.agents._model.outcome_spread`), the cell's
+  squares disagree about that decision: append the observation where the transition started (if
+  farther than ``d_min`` from every vector).
 
 State arrays: ``V`` ``(cap, n)`` the codebook; ``inv_scale``; ``P`` float and ``IP`` int
 parameters, ``S`` int and ``F`` float episode state (index names below); ``xs`` the observation
@@ -80,7 +81,7 @@ def _row_distance(X, t: int, off: int, V, i: int, inv_scale) -> float:
 
 
 @njit(cache=True)
-def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, p_head,
+def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head,
                 p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x) -> int:
     """Append ``x`` as a new cell (a new state of the model, every action unknown), and move every
     remembered transition that starts or ends in it to the new cell. Returns the cell."""
@@ -89,7 +90,7 @@ def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_
         V[c, d] = x[d]
     S[SIZE] = c + 1
     S[APPENDS] += 1
-    _model.add_state(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos,
+    _model.add_state(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                      prio, C, MP)
     n = V.shape[1]
     for t in range(S[MEM_N]):
@@ -102,9 +103,9 @@ def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_
             ne = c
         if ns == cs and ne == ce:
             continue
-        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, cs, a,
+        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, cs, a,
                mem_f[t, 0], mem_f[t, 1], ce, -1)
-        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, ns, a,
+        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, ns, a,
                mem_f[t, 0], mem_f[t, 1], ne, 1)
         push(heap, hpos, prio, C, cs, FIRST)
         push(heap, hpos, prio, C, ns, FIRST)
@@ -115,13 +116,13 @@ def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_
 
 
 @njit(cache=True)
-def remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge,
+def remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge,
              p_next, heap, hpos, prio, C, a: int, i: int, j: int, R: float, disc: float) -> None:
     """Keep the transition ``(i, a) -> j`` from ``xs`` to ``x`` in the memory; when it is full, the oldest
     transition is forgotten (removed from the model)."""
     t = S[MEM_POS]
     if S[MEM_N] == IP[MEMORY]:
-        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, C, mem_i[t, 1],
+        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, mem_i[t, 1],
                mem_i[t, 0], mem_f[t, 0], mem_f[t, 1], mem_i[t, 2], -1)
         push(heap, hpos, prio, C, mem_i[t, 1], FIRST)
     else:
@@ -139,7 +140,7 @@ def remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e
 
 
 @njit(cache=True)
-def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc,
+def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
           p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, obs) -> int:
     """Start an episode at ``obs`` (the first cell is the first observation, SPEC §3) and decide its first
     action; ``NOT_FINITE`` (changing nothing) for an observation that is NaN or infinite."""
@@ -147,7 +148,7 @@ def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q
         if not math.isfinite(obs[d]):
             return NOT_FINITE
     if S[SIZE] == 0:
-        append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, p_head,
+        append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head,
                     p_sa, p_edge, p_next, heap, hpos, prio, C, MP, obs)
     for d in range(obs.shape[0]):
         xs[d] = obs[d]
@@ -167,7 +168,7 @@ def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q
 
 
 @njit(cache=True)
-def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc,
+def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
          p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r: float, collision: bool, terminated: bool,
          truncated: bool) -> int:
     """One environment step that reached ``x`` with reward ``r``: the action to take next, ``ENDED``, or
@@ -195,7 +196,7 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q,
         if collision_rule(distance(V, i, x, inv_scale), np.sqrt(d2), P[DMIN]) == APPEND:
             if S[SIZE] < IP[MAX_CELLS]:
                 j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
-                                e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
+                                e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
             else:
                 S[REFUSED] += 1
     cut = truncated and not terminated and j == i and not collision  # (cut short by the time limit: not learned)
@@ -203,20 +204,21 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q,
         jm = -1 if terminated else j
         if IP[OUTCOME_SPLIT] and cnt[i, a] >= C[_model.KNOWN]:
             seen = F[RET] + (0.0 if terminated else F[DISC] * Vm[j])
-            if abs(seen - Q[i, a]) > P[SPLIT_THRESHOLD] and distance(V, i, xs, inv_scale) > P[DMIN]:
+            spread = _model.outcome_spread(cnt, head, Vm, e_to, e_next, e_n, e_disc, e_r, i, a, seen)
+            if spread > P[SPLIT_THRESHOLD] and distance(V, i, xs, inv_scale) > P[DMIN]:
                 _, ds2 = nearest_index(V, S[SIZE], xs, inv_scale)
                 if may_append(np.sqrt(ds2), P[DMIN]):
                     if S[SIZE] < IP[MAX_CELLS]:
                         i = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next,
-                                        e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, xs)
+                                        e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, xs)
                         S[SPLITS] += 1
                         if jm >= 0 and distance(V, i, x, inv_scale) < distance(V, jm, x, inv_scale):
                             j = jm = i  # (the transition ended in the new cell too)
                     else:
                         S[REFUSED] += 1
-        remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge,
+        remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge,
                  p_next, heap, hpos, prio, C, a, i, jm, F[RET], F[DISC])
-        _model.observe(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos,
+        _model.observe(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                        prio, C, MP, i, a, F[RET], F[DISC], jm, IP[BUDGET])
     if done:
         S[IN_EPISODE] = 0

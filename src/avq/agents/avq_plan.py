@@ -68,7 +68,7 @@ class PlanningAVQ(BaseAgent):
         known_after: int = 1,
         n_backups: int = 100,
         tol: float = 1e-6,
-        d_min: float = 0.05,
+        d_min: float = 0.02,
         collision_growth: bool = True,
         outcome_split: bool = True,
         split_threshold: float = 5.0,

@@ -205,12 +205,12 @@ class PrioritizedSweeping(BaseAgent):
 
 
 @njit(cache=True)
-def model_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
+def model_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
                C, MP, src, s, a, r, gamma, s2, terminated, epsilon, budget) -> int:
     """One step of prioritized sweeping: record ``(s, a) -> s2`` with reward ``r`` (terminal: no successor),
     plan (:func:`avq.agents._model.observe`), then the next action in ``s2`` (``a`` itself on a terminal
     step, which draws nothing)."""
-    _model.observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos,
+    _model.observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                    prio, C, MP, s, a, r, gamma, -1 if terminated else s2, budget)
     if terminated:
         return a
