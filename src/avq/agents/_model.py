@@ -299,10 +299,10 @@ def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p
 
 @njit(cache=True, inline="always")
 def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s: int, a: int, r: float,
-           disc: float, s2: int, sign: int) -> None:
+           disc: float, s2: int, sign: int) -> int:
     """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal) of return ``r`` and
-    discount ``disc``. A successor seen for the first time takes an edge (and a predecessor entry):
-    the caller makes room for one."""
+    discount ``disc``; return its edge. A successor seen for the first time takes an edge (and a
+    predecessor entry): the caller makes room for one."""
     m = cnt.shape[1]
     cnt[s, a] += sign
     rsum[s, a] += sign * r
@@ -333,34 +333,38 @@ def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge
     if e_n[e] == 0:
         e_disc[e] = 0.0
         e_r[e] = 0.0
+    return e
 
 
 @njit(cache=True, inline="always")
-def outcome_spread(cnt, head, V, e_to, e_next, e_n, e_disc, e_r, s: int, a: int, value: float) -> float:
-    """How far ``value`` (an outcome of the pair ``(s, a)``) lies from the mean outcome of each successor
-    the model has seen for the pair, ``(sum R + sum gamma**k V(s')) / n`` per successor: the largest
-    difference (0 for a pair never tried)."""
-    worst = 0.0
-    e = head[s, a]
-    while e >= 0:
-        n = e_n[e]
-        if n > 0:
-            t = e_to[e]
-            v = (e_r[e] + (e_disc[e] * V[t] if t >= 0 else 0.0)) / n
-            if abs(value - v) > worst:
-                worst = abs(value - v)
-        e = e_next[e]
-    return worst
+def settled(cnt, C, s: int) -> bool:
+    """Every action of ``s`` is known (``-1``, the terminal state, is settled): ``V(s)`` owes nothing directly
+    to optimism."""
+    if s < 0:
+        return True
+    for a in range(cnt.shape[1]):
+        if cnt[s, a] < C[KNOWN]:
+            return False
+    return True
 
 
 @njit(cache=True)
-def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
-            s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
-    """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), back
-    up ``s`` at once and sweep at most ``budget`` more states. Returns the backups done."""
-    record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
+def settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
+           s: int, budget: int) -> int:
+    """Back up ``s`` at once (its statistics changed), queue its predecessors by how much that moved it,
+    and sweep at most ``budget`` more states. Returns the backups done."""
     dv = backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s)
     if dv > MP[TOL]:
         propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s, dv)
     return 1 + sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                      prio, C, MP, budget)
+
+
+@njit(cache=True)
+def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
+            MP, s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
+    """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), then
+    :func:`settle` ``s``. Returns the backups done."""
+    record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
+    return settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
+                  prio, C, MP, s, budget)

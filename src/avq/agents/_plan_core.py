@@ -7,27 +7,33 @@ return ``R`` and discount ``gamma ** k`` is recorded in the model of :mod:`avq.a
 the planned values, which are optimistic for pairs not yet tried.
 
 **Remembered transitions.** The last ``memory`` aggregate transitions are kept with their start
-and end observations. When a cell is appended, each remembered transition whose start or end
-observation now lies in the new cell is moved there in the model (removed from its old pair and
-added to the new one), so that the model always describes the current partition by what was
-seen. The oldest transition leaves the model when the memory is full.
+and end observations. When the codebook changes, each remembered transition whose start or end
+observation now lies in another cell is moved in the model (removed from its old pair and added
+to the new one), so that the model describes the current partition by what was seen. Beyond
+``memory``, the oldest transition is overwritten: it stays in the model where it was.
 
 **Growth**, both selectable:
 
 * ``collision`` (the paper's rule, SPEC §3): on a collision at ``x`` farther than ``d_min`` from
   the cell's vector and from every vector, append ``x``. (Within ``d_min`` the paper sets
   ``Q[i, a] = chi``; here the model learns what the collision costs instead.)
-* ``outcome`` (after parti-game, Moore & Atkeson 1995): when a pair the model knows leads to an
-  outcome ``R + gamma**k V(j)`` more than ``split_threshold`` away from the mean outcome of one of
-  the successors it has led to before (:func:`avq.agents._model.outcome_spread`), the cell's
-  squares disagree about that decision: append the observation where the transition started (if
-  farther than ``d_min`` from every vector).
+* ``outcome`` (after parti-game, Moore & Atkeson 1995, and Munos & Moore's splits where the value
+  is not smooth): a decision ``a`` in cell ``i`` that the model knows led, from start ``xs``, to
+  an outcome ``R + gamma**k V(j)`` that differs from the mean outcome of a successor it led to
+  before, from that successor's mean start ``c``, by more than the distance between the starts can
+  explain: ``|difference| > split_threshold + L * ||xs - c||``, ``L`` the value's slope (the return
+  per unit of scaled distance travelled, estimated from the transitions without collisions unless
+  ``value_slope`` is given). The cell's squares then disagree about that decision for a reason of
+  structure (a wall, a dead end), not of distance: :func:`split_cell` cuts it in two around the two
+  starts. Only outcomes that end in :func:`~avq.agents._model.settled` cells are compared, and only
+  when the worse one is below the cell's next best decision (the split would change the policy).
 
 State arrays: ``V`` ``(cap, n)`` the codebook; ``inv_scale``; ``P`` float and ``IP`` int
-parameters, ``S`` int and ``F`` float episode state (index names below); ``xs`` the observation
-that started the current transition; the memory ``mem_x`` ``(M, 2n)`` start and end observations,
+parameters, ``S`` int and ``F`` float state (index names below); ``xs`` the observation that
+started the current transition; the memory ``mem_x`` ``(M, 2n)`` start and end observations,
 ``mem_i`` ``(M, 3)`` action, start cell, end cell (-1: terminal), ``mem_f`` ``(M, 2)`` return and
-discount. The model's arrays follow (``*model`` below: :class:`avq.agents._model.ModelArrays`).
+discount; ``e_xs`` ``(edges, n)`` the sum of the starts of each edge's transitions. The model's
+arrays follow (:class:`avq.agents._model.ModelArrays`).
 """
 
 from __future__ import annotations
@@ -38,26 +44,26 @@ import numpy as np
 from numba import njit
 
 from avq._kernels import nearest_index
-from avq._random import DRAWS_PER_DECISION
 from avq.agents import _model
-from avq.agents._model import FIRST, push, record, sweep
+from avq.agents._model import FIRST, push, record, settled
 from avq.agents._td import epsilon_greedy
-from avq.rules import APPEND, collision_rule, may_append
+from avq.rules import APPEND, collision_rule
 
 # P: float parameters
-GAMMA, EPS, DMIN, SPLIT_THRESHOLD = range(4)
-N_P = 4
+GAMMA, EPS, DMIN, SPLIT_THRESHOLD, SLOPE = range(5)
+N_P = 5
 # IP: int parameters
 MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY = range(5)
 N_IP = 5
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, IN_EPISODE, MEM_N, MEM_POS, SPLITS = range(11)
 N_S = 11
-# F: float state
-RET, DISC, EP_RETURN = range(3)
-N_F = 3
+# F: float state: the current transition's return and discount, the episode's return, and the sums
+# that estimate the value's slope (return per unit of scaled distance travelled, and how many)
+RET, DISC, EP_RETURN, SLOPE_SUM, SLOPE_N = range(5)
+N_F = 5
 #: Statuses of :func:`step` (an action, >= 0, while the episode goes on).
-ENDED, NOT_FINITE, NEED_DRAWS, NEED_ROOM = -1, -2, -3, -5
+ENDED, NOT_FINITE = -1, -2
 #: Cells a step may append (a collision and a split).
 APPENDS_PER_STEP = 2
 
@@ -72,19 +78,85 @@ def distance(V, i: int, x, inv_scale) -> float:
 
 
 @njit(cache=True, inline="always")
-def _row_distance(X, t: int, off: int, V, i: int, inv_scale) -> float:
+def distance_between(x, y, inv_scale) -> float:
     s = 0.0
-    for d in range(V.shape[1]):
-        z = (V[i, d] - X[t, off + d]) * inv_scale[d]
+    for d in range(x.shape[0]):
+        z = (x[d] - y[d]) * inv_scale[d]
         s += z * z
     return np.sqrt(s)
 
 
+@njit(cache=True, inline="always")
+def _row_distance2(X, t: int, off: int, V, i: int, inv_scale) -> float:
+    """Squared scaled distance from the stored observation ``X[t, off:off + n]`` to vector ``i`` (the
+    arithmetic of :func:`avq._kernels.nearest_index`)."""
+    s = 0.0
+    for d in range(V.shape[1]):
+        z = (V[i, d] - X[t, off + d]) * inv_scale[d]
+        s += z * z
+    return s
+
+
+@njit(cache=True, inline="always")
+def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_scale) -> int:
+    """The cell of the stored observation ``X[t, off:]``, which was in cell ``k``, after vectors ``u`` and
+    ``w`` changed (moved or new): among ``k``, ``u``, ``w`` unless it was in one of them (then among all),
+    lowest index on ties as :func:`avq._kernels.nearest_index`."""
+    if k == u or k == w:
+        best, _ = nearest_index(V, size, X[t, off:off + V.shape[1]], inv_scale)
+        return best
+    best = k
+    best_d = _row_distance2(X, t, off, V, k, inv_scale)
+    for c in (u, w):
+        d = _row_distance2(X, t, off, V, c, inv_scale)
+        if d < best_d or (d == best_d and c < best):
+            best, best_d = c, d
+    return best
+
+
+@njit(cache=True, inline="always")
+def _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, e_xs, X, t: int,
+            s: int, a: int, r: float, disc: float, s2: int, sign: int) -> None:
+    """:func:`avq.agents._model.record`, and the transition's start ``X[t, :n]`` added to (or removed from)
+    its edge's sum of starts."""
+    e = record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2,
+               sign)
+    for d in range(e_xs.shape[1]):
+        e_xs[e, d] += sign * X[t, d]
+    if e_n[e] == 0:
+        for d in range(e_xs.shape[1]):
+            e_xs[e, d] = 0.0
+
+
 @njit(cache=True)
-def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head,
-                p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x) -> int:
-    """Append ``x`` as a new cell (a new state of the model, every action unknown), and move every
-    remembered transition that starts or ends in it to the new cell. Returns the cell."""
+def relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head,
+             p_sa, p_edge, p_next, heap, hpos, prio, C, u: int, w: int) -> None:
+    """After vectors ``u`` and ``w`` changed, move every remembered transition whose start or end cell
+    changed to its new pair in the model (and queue both cells' backups)."""
+    n = V.shape[1]
+    size = S[SIZE]
+    for t in range(S[MEM_N]):
+        a, cs, ce = mem_i[t, 0], mem_i[t, 1], mem_i[t, 2]
+        ns = _cell_after(V, size, mem_x, t, 0, cs, u, w, inv_scale)
+        ne = ce if ce < 0 else _cell_after(V, size, mem_x, t, n, ce, u, w, inv_scale)
+        if ns == cs and ne == ce:
+            continue
+        _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, e_xs, mem_x, t,
+                cs, a, mem_f[t, 0], mem_f[t, 1], ce, -1)
+        _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, e_xs, mem_x, t,
+                ns, a, mem_f[t, 0], mem_f[t, 1], ne, 1)
+        push(heap, hpos, prio, C, cs, FIRST)
+        push(heap, hpos, prio, C, ns, FIRST)
+        mem_i[t, 1] = ns
+        mem_i[t, 2] = ne
+    push(heap, hpos, prio, C, u, FIRST)
+    push(heap, hpos, prio, C, w, FIRST)
+
+
+@njit(cache=True, inline="always")
+def _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
+              prio, C, MP, x) -> int:
+    """Vector ``x`` as a new cell and a new state of the model (every action unknown)."""
     c = S[SIZE]
     for d in range(x.shape[0]):
         V[c, d] = x[d]
@@ -92,40 +164,111 @@ def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_
     S[APPENDS] += 1
     _model.add_state(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                      prio, C, MP)
-    n = V.shape[1]
-    for t in range(S[MEM_N]):
-        a, cs, ce = mem_i[t, 0], mem_i[t, 1], mem_i[t, 2]
-        ns, ne = cs, ce
-        # (strictly nearer: on a tie the lower index, the old cell, stays nearest, as in nearest_index)
-        if _row_distance(mem_x, t, 0, V, c, inv_scale) < _row_distance(mem_x, t, 0, V, cs, inv_scale):
-            ns = c
-        if ce >= 0 and _row_distance(mem_x, t, n, V, c, inv_scale) < _row_distance(mem_x, t, n, V, ce, inv_scale):
-            ne = c
-        if ns == cs and ne == ce:
-            continue
-        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, cs, a,
-               mem_f[t, 0], mem_f[t, 1], ce, -1)
-        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, ns, a,
-               mem_f[t, 0], mem_f[t, 1], ne, 1)
-        push(heap, hpos, prio, C, cs, FIRST)
-        push(heap, hpos, prio, C, ns, FIRST)
-        mem_i[t, 1] = ns
-        mem_i[t, 2] = ne
-    push(heap, hpos, prio, C, c, FIRST)
     return c
 
 
 @njit(cache=True)
-def remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge,
-             p_next, heap, hpos, prio, C, a: int, i: int, j: int, R: float, disc: float) -> None:
-    """Keep the transition ``(i, a) -> j`` from ``xs`` to ``x`` in the memory; when it is full, the oldest
-    transition is forgotten (removed from the model)."""
+def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
+                p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x) -> int:
+    """Append ``x`` as a new cell, and move the remembered transitions that now start or end in it."""
+    c = _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+                  hpos, prio, C, MP, x)
+    relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head,
+             p_sa, p_edge, p_next, heap, hpos, prio, C, c, c)
+    return c
+
+
+@njit(cache=True)
+def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
+               p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, i: int, a: int, seed_1, seed_2) -> int:
+    """Cut cell ``i`` in two around two starts of decision ``a`` whose outcomes disagree: each remembered
+    transition ``(i, a)`` goes with the nearer of ``seed_1`` and ``seed_2``; the cell's vector moves to the
+    mean start of the first group and the mean start of the second becomes a new cell. Returns the new
+    cell, or -1 (nothing changed) when a group is empty or the two means lie within ``d_min``."""
+    n = V.shape[1]
+    g1 = np.zeros(n)
+    g2 = np.zeros(n)
+    n1 = 0
+    n2 = 0
+    for t in range(S[MEM_N]):
+        if mem_i[t, 1] == i and mem_i[t, 0] == a:
+            d1 = 0.0
+            d2 = 0.0
+            for d in range(n):
+                z1 = (mem_x[t, d] - seed_1[d]) * inv_scale[d]
+                z2 = (mem_x[t, d] - seed_2[d]) * inv_scale[d]
+                d1 += z1 * z1
+                d2 += z2 * z2
+            if d1 <= d2:
+                n1 += 1
+                for d in range(n):
+                    g1[d] += mem_x[t, d]
+            else:
+                n2 += 1
+                for d in range(n):
+                    g2[d] += mem_x[t, d]
+    if n1 == 0 or n2 == 0:
+        return -1
+    gap = 0.0
+    for d in range(n):
+        g1[d] /= n1
+        g2[d] /= n2
+        z = (g1[d] - g2[d]) * inv_scale[d]
+        gap += z * z
+    if not np.sqrt(gap) > P[DMIN]:
+        return -1
+    for d in range(n):
+        V[i, d] = g1[d]
+    c = _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+                  hpos, prio, C, MP, g2)
+    relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head,
+             p_sa, p_edge, p_next, heap, hpos, prio, C, i, c)
+    return c
+
+
+@njit(cache=True, inline="always")
+def value_slope(P, F) -> float:
+    """``L``: ``value_slope`` if given, else the mean return per unit of scaled distance travelled by the
+    transitions without a collision so far (0 before the first)."""
+    if P[SLOPE] >= 0.0:
+        return P[SLOPE]
+    return F[SLOPE_SUM] / F[SLOPE_N] if F[SLOPE_N] > 0 else 0.0
+
+
+@njit(cache=True)
+def disagreement(cnt, head, Vm, e_to, e_next, e_n, e_disc, e_r, C, e_xs, inv_scale, i: int, a: int, seen: float,
+                 xs, slope: float, out) -> float:
+    """The largest excess ``|seen - v_e| - slope * ||xs - c_e||`` over the settled successors ``e`` of
+    ``(i, a)`` (``v_e`` the mean outcome of the edge, ``c_e`` its mean start, copied into ``out``), and
+    ``-inf`` when there is none. The worse of the two outcomes is ``out``'s last entry."""
+    n = xs.shape[0]
+    worst = -np.inf
+    e = head[i, a]
+    while e >= 0:
+        k = e_n[e]
+        if k > 0 and settled(cnt, C, e_to[e]):
+            t = e_to[e]
+            v = (e_r[e] + (e_disc[e] * Vm[t] if t >= 0 else 0.0)) / k
+            dist = 0.0
+            for d in range(n):
+                z = (xs[d] - e_xs[e, d] / k) * inv_scale[d]
+                dist += z * z
+            excess = abs(seen - v) - slope * np.sqrt(dist)
+            if excess > worst:
+                worst = excess
+                for d in range(n):
+                    out[d] = e_xs[e, d] / k
+                out[n] = min(seen, v)
+        e = e_next[e]
+    return worst
+
+
+@njit(cache=True)
+def remember(IP, S, xs, x, mem_x, mem_i, mem_f, a: int, i: int, j: int, R: float, disc: float) -> None:
+    """Keep the transition ``(i, a) -> j`` from ``xs`` to ``x`` in the memory. When it is full, the oldest
+    is overwritten: it stays in the model, in the cells it was in, but no longer follows their changes."""
     t = S[MEM_POS]
-    if S[MEM_N] == IP[MEMORY]:
-        record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, mem_i[t, 1],
-               mem_i[t, 0], mem_f[t, 0], mem_f[t, 1], mem_i[t, 2], -1)
-        push(heap, hpos, prio, C, mem_i[t, 1], FIRST)
-    else:
+    if S[MEM_N] < IP[MEMORY]:
         S[MEM_N] += 1
     n = x.shape[0]
     for d in range(n):
@@ -140,16 +283,16 @@ def remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e
 
 
 @njit(cache=True)
-def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
-          p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, obs) -> int:
+def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc,
+          e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, obs) -> int:
     """Start an episode at ``obs`` (the first cell is the first observation, SPEC §3) and decide its first
     action; ``NOT_FINITE`` (changing nothing) for an observation that is NaN or infinite."""
     for d in range(obs.shape[0]):
         if not math.isfinite(obs[d]):
             return NOT_FINITE
     if S[SIZE] == 0:
-        append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head,
-                    p_sa, p_edge, p_next, heap, hpos, prio, C, MP, obs)
+        _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+                  hpos, prio, C, MP, obs)
     for d in range(obs.shape[0]):
         xs[d] = obs[d]
     S[EP_STEPS] = 0
@@ -168,12 +311,12 @@ def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q
 
 
 @njit(cache=True)
-def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
-         p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r: float, collision: bool, terminated: bool,
-         truncated: bool) -> int:
+def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc,
+         e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r: float, collision: bool,
+         terminated: bool, truncated: bool) -> int:
     """One environment step that reached ``x`` with reward ``r``: the action to take next, ``ENDED``, or
     ``NOT_FINITE`` (changing nothing). The caller makes room for :data:`APPENDS_PER_STEP` cells, for
-    ``memory + 2`` more edges of the model, and for one decision's draws."""
+    ``APPENDS_PER_STEP * (remembered + 1)`` more edges of the model, and for one decision's draws."""
     if not math.isfinite(r):
         return NOT_FINITE
     for d in range(x.shape[0]):
@@ -190,36 +333,51 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, cnt, rsum, head, Q,
     if j == i and not (collision or done):
         return a
     # The aggregate transition (i, a) -> j has ended.
+    travelled = distance_between(xs, x, inv_scale)
+    if not collision and travelled > 0.0:
+        F[SLOPE_SUM] += abs(F[RET]) / travelled
+        F[SLOPE_N] += 1.0
     if collision and IP[COLLISION_GROWTH]:
         # SPEC §3's growth on a collision: append x unless it lies within d_min of the cell's vector
         # (or of another vector).
         if collision_rule(distance(V, i, x, inv_scale), np.sqrt(d2), P[DMIN]) == APPEND:
             if S[SIZE] < IP[MAX_CELLS]:
-                j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
+                j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
                                 e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
             else:
                 S[REFUSED] += 1
     cut = truncated and not terminated and j == i and not collision  # (cut short by the time limit: not learned)
     if not cut:
         jm = -1 if terminated else j
-        if IP[OUTCOME_SPLIT] and cnt[i, a] >= C[_model.KNOWN]:
+        # Does the outcome disagree with what this decision led to before, more than distance explains?
+        # (asked before the transition is recorded)
+        n = x.shape[0]
+        other = np.empty(n + 1)
+        excess = -np.inf
+        if IP[OUTCOME_SPLIT] and cnt[i, a] >= C[_model.KNOWN] and settled(cnt, C, jm):
             seen = F[RET] + (0.0 if terminated else F[DISC] * Vm[j])
-            spread = _model.outcome_spread(cnt, head, Vm, e_to, e_next, e_n, e_disc, e_r, i, a, seen)
-            if spread > P[SPLIT_THRESHOLD] and distance(V, i, xs, inv_scale) > P[DMIN]:
-                _, ds2 = nearest_index(V, S[SIZE], xs, inv_scale)
-                if may_append(np.sqrt(ds2), P[DMIN]):
-                    if S[SIZE] < IP[MAX_CELLS]:
-                        i = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, cnt, rsum, head, Q, Vm, e_to, e_next,
-                                        e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, xs)
+            excess = disagreement(cnt, head, Vm, e_to, e_next, e_n, e_disc, e_r, C, e_xs, inv_scale, i, a, seen, xs,
+                                  value_slope(P, F), other)
+        t = S[MEM_POS]
+        remember(IP, S, xs, x, mem_x, mem_i, mem_f, a, i, jm, F[RET], F[DISC])
+        _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, e_xs, mem_x, t, i, a,
+                F[RET], F[DISC], jm, 1)
+        if excess > P[SPLIT_THRESHOLD]:
+            bar = -np.inf  # the value of the next best decision in i: the split must matter to the policy
+            for b in range(Q.shape[1]):
+                if b != a and Q[i, b] > bar:
+                    bar = Q[i, b]
+            if other[n] < bar:
+                if S[SIZE] < IP[MAX_CELLS]:
+                    if split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next,
+                                  e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, i, a, xs,
+                                  other[:n]) >= 0:
                         S[SPLITS] += 1
-                        if jm >= 0 and distance(V, i, x, inv_scale) < distance(V, jm, x, inv_scale):
-                            j = jm = i  # (the transition ended in the new cell too)
-                    else:
-                        S[REFUSED] += 1
-        remember(IP, S, xs, x, mem_x, mem_i, mem_f, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge,
-                 p_next, heap, hpos, prio, C, a, i, jm, F[RET], F[DISC])
-        _model.observe(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                       prio, C, MP, i, a, F[RET], F[DISC], jm, IP[BUDGET])
+                        j, _ = nearest_index(V, S[SIZE], x, inv_scale)  # (the vectors moved)
+                else:
+                    S[REFUSED] += 1
+        _model.settle(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
+                      prio, C, MP, mem_i[t, 1], IP[BUDGET])
     if done:
         S[IN_EPISODE] = 0
         return ENDED

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import check_bool, check_int, check_range
+from avq._validate import check_bool, check_int, check_optional, check_range
 from avq.agents import _model
 from avq.agents import _plan_core as core
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
@@ -39,9 +39,12 @@ class PlanningAVQ(BaseAgent):
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
             vector, append the observation (SPEC §3).
-        outcome_split: Append the observation that started a transition whose outcome, valued by
-            the model, differs from the model's value of the decision by more than ``split_threshold``.
-        split_threshold: That difference, > 0.
+        outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by
+            more than ``split_threshold`` beyond what the distance between their starts explains
+            (:mod:`avq.agents._plan_core`).
+        split_threshold: That excess, > 0.
+        value_slope: The value's slope ``L`` of that rule, per unit of scaled distance; None: estimated
+            online (the mean return per scaled distance travelled by the transitions without collision).
         memory: Aggregate transitions remembered, from which the model follows the cells as they
             change (the oldest is forgotten beyond it).
         scale: Per-dimension scale of the metric (a number or one per dimension); None: ``high - low``
@@ -72,7 +75,8 @@ class PlanningAVQ(BaseAgent):
         collision_growth: bool = True,
         outcome_split: bool = True,
         split_threshold: float = 5.0,
-        memory: int = 20_000,
+        value_slope: float | None = None,
+        memory: int = 100_000,
         scale: float | Sequence[float] | None = None,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
@@ -84,6 +88,7 @@ class PlanningAVQ(BaseAgent):
         self.outcome_split = check_bool("outcome_split", outcome_split)
         self.split_threshold = check_range("split_threshold", split_threshold, 0.0, np.inf, low_open=True,
                                            high_open=True)
+        self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.scale = scale
@@ -125,8 +130,9 @@ class PlanningAVQ(BaseAgent):
         self._V = np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n))
         self._inv_scale = 1.0 / self._scale
         self._P = np.zeros(core.N_P)
-        self._P[[core.GAMMA, core.EPS, core.DMIN, core.SPLIT_THRESHOLD]] = (
-            self.gamma, self.epsilon, self.d_min, self.split_threshold)
+        self._P[[core.GAMMA, core.EPS, core.DMIN, core.SPLIT_THRESHOLD, core.SLOPE]] = (
+            self.gamma, self.epsilon, self.d_min, self.split_threshold,
+            -1.0 if self.value_slope is None else self.value_slope)
         self._IP = np.zeros(core.N_IP, dtype=np.int64)
         self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY]] = (
             self.max_cells, self.n_backups, self.collision_growth, self.outcome_split, self.memory)
@@ -136,6 +142,7 @@ class PlanningAVQ(BaseAgent):
         self._mem_x = np.zeros((self.memory, 2 * n))
         self._mem_i = np.zeros((self.memory, 3), dtype=np.int64)
         self._mem_f = np.zeros((self.memory, 2))
+        self._e_xs = np.zeros((0, n))
         self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
 
     def _make_room(self) -> None:
@@ -147,10 +154,15 @@ class PlanningAVQ(BaseAgent):
             self._V = new
         self._model.reserve(states=core.APPENDS_PER_STEP,
                             edges=core.APPENDS_PER_STEP * (int(self._S[core.MEM_N]) + 1))
+        edges = self._model.a.e_to.shape[0]
+        if self._e_xs.shape[0] < edges:
+            grown = np.zeros((edges, self._e_xs.shape[1]))
+            grown[: len(self._e_xs)] = self._e_xs
+            self._e_xs = grown
 
     def _arrays(self) -> tuple:
         return (self._V, self._inv_scale, self._P, self._IP, self._S, self._F, self._xs, self._mem_x, self._mem_i,
-                self._mem_f, *self._model.a)
+                self._mem_f, self._e_xs, *self._model.a)
 
     # -- the episode loop -----------------------------------------------------------------
     def _begin_episode(self, obs: Any) -> None:
@@ -211,7 +223,8 @@ class PlanningAVQ(BaseAgent):
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
         arrays.update(codebook=self.codebook_, S=self._S.copy(), F=self._F.copy(), xs=self._xs.copy(),
-                      mem_x=self._mem_x.copy(), mem_i=self._mem_i.copy(), mem_f=self._mem_f.copy())
+                      mem_x=self._mem_x.copy(), mem_i=self._mem_i.copy(), mem_f=self._mem_f.copy(),
+                      e_xs=self._e_xs[: int(self._model.a.C[_model.N_EDGES])].copy())
         arrays.update(self._model.state_dict())
         return meta, arrays
 
@@ -231,3 +244,9 @@ class PlanningAVQ(BaseAgent):
             self._V = np.concatenate([self._V, np.zeros_like(self._V)])
         self._V[: len(codebook)] = codebook
         self._model.load_state_dict(arrays)
+        self._make_room()
+        e_xs = arrays["e_xs"]
+        if e_xs.shape != (int(self._model.a.C[_model.N_EDGES]), self._xs.shape[0]):
+            raise ValueError(f"array e_xs has shape {e_xs.shape}; expected "
+                             f"({int(self._model.a.C[_model.N_EDGES])}, {self._xs.shape[0]})")
+        self._e_xs[: len(e_xs)] = e_xs

@@ -96,7 +96,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # AVQ with a model of its cells and planning over it (docs/RESULTS.md, "Planning").
     "avq-plan": {
         "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=1e-6,
-                  d_min=0.02, collision_growth=True, outcome_split=True, split_threshold=5.0, memory=20_000,
+                  d_min=0.02, collision_growth=True, outcome_split=True, split_threshold=5.0, value_slope=None, memory=100_000,
                   scale=None, max_cells=10_000),
     },
     # The baselines. Their defaults were chosen by a quick measurement, described here with its
