@@ -27,7 +27,7 @@ CONTINUOUS_ACTIONS = {"avq-actions", "uniform-actions"}
 
 
 def overrides(agent, env_name):
-    if env_name == "cartpole" and agent in ("avq", "grid", "tiles"):
+    if env_name == "cartpole" and agent in ("avq", "avq-plan", "grid", "tiles"):
         return {"obs_bounds": CARTPOLE_BOUNDS}
     if env_name == "robot-maze-sonar" and agent == "grid":
         return {"bins": 2}  # 18 dimensions: 10 bins each would be 10**18 rows
@@ -38,7 +38,7 @@ def supported(agent, env_name):
     """Which combinations must work; the others must fail with a clear ValueError."""
     if env_name == "pendulum" or agent in CONTINUOUS_ACTIONS:
         return env_name == "pendulum" and agent in CONTINUOUS_ACTIONS
-    return env_name != "frozen-lake" or agent == "tabular"
+    return env_name != "frozen-lake" or agent in ("tabular", "tabular-ps")
 
 
 def predict_obs(env):
@@ -84,4 +84,4 @@ def test_check_env_on_every_registered_avq_env(env_id):
 
 
 def test_registered_names():
-    assert {"avq", "avq-paper", "tabular", "grid", "tiles"} <= set(AGENTS)
+    assert {"avq", "avq-paper", "avq-plan", "tabular", "tabular-ps", "grid", "tiles"} <= set(AGENTS)

@@ -27,12 +27,15 @@ from avq.agents._avq_core import (
     ACTION, DONE, GEOM, IN_EPISODE, N_R, NEED_CAPACITY, RECORDS_FULL, SIZE,
     begin_episode, decide, end_episode, learn, observe, observe_at,
 )
+from avq.agents import _model
+from avq.agents import _plan_core as plan_core
 from avq.agents._td import clear_traces, epsilon_greedy, table_step
 from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
 
-__all__ = ["plan", "maze_arguments", "drive", "run_avq_maze", "run_tabular_grid_maze"]
+__all__ = ["plan", "maze_arguments", "drive", "run_avq_maze", "run_tabular_grid_maze", "run_plan_maze",
+           "run_ps_grid_maze"]
 
 
 def plan(env, grid_only: bool = False) -> CompiledMaze | None:
@@ -262,3 +265,112 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
             rec[episodes, 5] = 0
             rec[episodes, 6] = T[3]
             episodes += 1
+
+
+@njit(cache=True)
+def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
+                  e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, env_rng,
+                  robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
+                  max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Train ``avq-plan`` on a maze: :func:`avq.agents._plan_core.start` and ``step`` at every step, as
+    ``PlanningAVQ`` does stepping the environment. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY``
+    when the arrays may not hold what the next step adds."""
+    steps = 0
+    episodes = 0
+    x = np.empty(V.shape[1])
+    sonar = np.empty(dirs.shape[0])
+    while True:
+        if not plan_core.room_left(V, S, C, e_to, cnt) or e_xs.shape[0] < e_to.shape[0]:
+            return steps, episodes, NEED_CAPACITY
+        if S[plan_core.IN_EPISODE] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            _start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
+            _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+            plan_core.start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
+                            e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x)
+            continue
+        if steps >= budget_steps:
+            return steps, episodes, DONE
+        r, terminated, collision = _move(env_rng, pos, S[plan_core.ACTION], robot, walls, gx, gy, move, radius, slip)
+        truncated = pos[2] >= max_episode_steps
+        _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+        steps += 1
+        a = plan_core.step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
+                           e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x, r,
+                           collision, terminated, truncated)
+        if a == plan_core.ENDED:
+            plan_core.end_record(S, F, rec[episodes])
+            episodes += 1
+
+
+@njit(cache=True)
+def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
+                     prio, C, MP, row_of, keys, T, TF, gamma, epsilon, n_backups, rng, env_rng,
+                     robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
+                     max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Prioritized sweeping (``tabular-ps``) on a GridMaze: a state for every position on its first visit and
+    :func:`avq.agents._model.ps_step` at every step, as ``PrioritizedSweeping`` does stepping the
+    environment. ``T``: current row, current action, episode steps, rows added this episode, in-episode
+    flag; ``TF[0]``: episode return. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
+    model may not hold a new state and a new edge."""
+    steps = 0
+    episodes = 0
+    while True:
+        if C[_model.N_STATES] + 1 > cnt.shape[0] or C[_model.N_EDGES] + 1 > e_to.shape[0]:
+            return steps, episodes, NEED_CAPACITY
+        if T[4] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            _start(env_rng, pos, False, walls, gx, gy, starts, fixed, radius)
+            T[2] = 0
+            T[3] = 0
+            TF[0] = 0.0
+            T[0] = _ps_row(row_of, keys, T, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa,
+                           p_edge, p_next, heap, hpos, prio, C, MP, int(pos[0]), int(pos[1]))
+            T[1] = epsilon_greedy(rng, Q, T[0], epsilon)
+            T[4] = 1
+            continue
+        if steps >= budget_steps:
+            return steps, episodes, DONE
+        r, terminated, _ = _move(env_rng, pos, T[1], False, walls, gx, gy, move, radius, slip)
+        truncated = pos[2] >= max_episode_steps
+        steps += 1
+        T[2] += 1
+        TF[0] += r
+        s2 = _ps_row(row_of, keys, T, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge,
+                     p_next, heap, hpos, prio, C, MP, int(pos[0]), int(pos[1]))
+        T[1] = _model.ps_step(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+                          hpos, prio, C, MP, rng, T[0], T[1], r, gamma, s2, terminated, epsilon, n_backups)
+        T[0] = s2
+        if terminated or truncated:
+            T[4] = 0
+            rec[episodes, 0] = T[2]
+            rec[episodes, 1] = TF[0]
+            rec[episodes, 2] = C[_model.N_STATES]
+            rec[episodes, 3] = T[3]
+            rec[episodes, 4] = 0
+            rec[episodes, 5] = 0
+            rec[episodes, 6] = T[2]
+            episodes += 1
+            if C[_model.N_STATES] + 1 > cnt.shape[0] or C[_model.N_EDGES] + 1 > e_to.shape[0]:
+                return steps, episodes, NEED_CAPACITY
+
+
+@njit(cache=True, inline="always")
+def _ps_row(row_of, keys, T, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+            hpos, prio, C, MP, x, y):
+    """The state of position (x, y), made (in order of first visit) when new."""
+    r = row_of[y, x]
+    if r < 0:
+        r = _model.add_state(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next,
+                             heap, hpos, prio, C, MP)
+        row_of[y, x] = r
+        keys[r, 0] = x
+        keys[r, 1] = y
+        T[3] += 1
+    return r

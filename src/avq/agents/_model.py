@@ -41,6 +41,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from avq.agents._td import epsilon_greedy
+
 __all__ = ["Model", "ModelArrays"]
 
 # C: int counters and parameters
@@ -368,3 +370,16 @@ def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa,
     record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
     return settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                   prio, C, MP, s, budget)
+
+
+@njit(cache=True)
+def ps_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
+               C, MP, src, s, a, r, gamma, s2, terminated, epsilon, budget) -> int:
+    """One step of ``tabular-ps`` (a state per observation): record ``(s, a) -> s2`` with reward ``r`` and
+    discount ``gamma`` (terminal: no successor), plan (:func:`observe`), then the next action in ``s2``,
+    ε-greedy (``a`` itself on a terminal step, which draws nothing). Both paths call it."""
+    observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
+                   prio, C, MP, s, a, r, gamma, -1 if terminated else s2, budget)
+    if terminated:
+        return a
+    return epsilon_greedy(src, Q, s2, epsilon)

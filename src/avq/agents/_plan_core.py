@@ -283,6 +283,26 @@ def remember(IP, S, xs, x, mem_x, mem_i, mem_f, a: int, i: int, j: int, R: float
 
 
 @njit(cache=True)
+def end_record(S, F, rec_row) -> None:
+    """The finished episode's record row (the columns of ``avq.agents._avq_core.R_*``): steps, return, cells,
+    appends, merges (none), refused, decisions."""
+    rec_row[0] = S[EP_STEPS]
+    rec_row[1] = F[EP_RETURN]
+    rec_row[2] = S[SIZE]
+    rec_row[3] = S[APPENDS]
+    rec_row[4] = 0
+    rec_row[5] = S[REFUSED]
+    rec_row[6] = S[DECISIONS]
+
+
+@njit(cache=True, inline="always")
+def room_left(V, S, C, e_to, cnt) -> bool:
+    """Whether the arrays hold what one step may add (:func:`step`'s contract with its caller)."""
+    return (S[SIZE] + APPENDS_PER_STEP <= V.shape[0] and C[_model.N_STATES] + APPENDS_PER_STEP <= cnt.shape[0]
+            and C[_model.N_EDGES] + APPENDS_PER_STEP * (S[MEM_N] + 1) <= e_to.shape[0])
+
+
+@njit(cache=True)
 def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc,
           e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, obs) -> int:
     """Start an episode at ``obs`` (the first cell is the first observation, SPEC §3) and decide its first

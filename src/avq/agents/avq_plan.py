@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_optional, check_range
-from avq.agents import _model
+from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
@@ -51,6 +51,9 @@ class PlanningAVQ(BaseAgent):
             of the observation bounds.
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
+        fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers
+            only), run the maze and the agent in one compiled loop: the same results as stepping the
+            environment from Python, faster. False always steps the environment from Python.
         seed: Seed of every random choice the agent makes and of the environment's first reset.
 
     Attributes:
@@ -80,6 +83,7 @@ class PlanningAVQ(BaseAgent):
         scale: float | Sequence[float] | None = None,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
+        fused: bool = True,
         seed: int | None = None,
     ) -> None:
         check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol)
@@ -91,6 +95,7 @@ class PlanningAVQ(BaseAgent):
         self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
+        self.fused = check_bool("fused", fused)
         self.scale = scale
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
@@ -202,9 +207,27 @@ class PlanningAVQ(BaseAgent):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        S = self._S
-        return episode_record(S[core.EP_STEPS], self._F[core.EP_RETURN], S[core.SIZE], S[core.APPENDS], 0,
-                              S[core.REFUSED], S[core.DECISIONS])
+        row = np.zeros(7)
+        core.end_record(self._S, self._F, row)
+        return episode_record(*row)
+
+    # -- the fused loop (avq.agents._fused) ------------------------------------------------
+    def _fused_runner(self):
+        maze = _fused.plan(self.env) if self.fused else None
+        if maze is None:
+            return None
+        args = _fused.maze_arguments(maze)
+
+        def kernel(pos, budget_steps, budget_episodes, rec):
+            return _fused.run_plan_maze(*self._arrays(), self._rng, maze.np_random, *args, pos, budget_steps,
+                                        budget_episodes, rec)
+
+        def run(max_steps: int, max_episodes: int, max_records: int):
+            self._draws.sync()  # the loop draws from the generator itself
+            steps, rows = _fused.drive(maze, kernel, self._make_room, max_steps, max_episodes, max_records)
+            return steps, rows, bool(self._S[core.IN_EPISODE])
+
+        return run
 
     # -- queries -----------------------------------------------------------------------------
     def cells(self, observations: np.ndarray) -> np.ndarray:

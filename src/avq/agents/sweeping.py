@@ -8,11 +8,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from numba import njit
 
-from avq._validate import check_int, check_range
-from avq.agents import _model
-from avq.agents._td import epsilon_greedy
+from avq._validate import check_bool, check_int, check_range
+from avq.agents import _fused, _model
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
 __all__ = ["PrioritizedSweeping", "check_planning_params"]
@@ -55,6 +53,8 @@ class PrioritizedSweeping(BaseAgent):
         n_backups: Backups per step beyond the one of the pair just tried (0: no planning beyond it).
         tol: Smallest change of a value that is propagated to its predecessors.
         max_states: Upper bound on the number of states; an observation beyond it is an error.
+        fused: On ``avq/GridMaze-v0`` (standard wrappers only), run the maze and the agent in one compiled
+            loop; the same results as stepping the environment from Python.
         seed: Seed of every random choice the agent makes and of the env's first reset.
 
     Attributes:
@@ -76,10 +76,12 @@ class PrioritizedSweeping(BaseAgent):
         n_backups: int = 100,
         tol: float = 1e-6,
         max_states: int = 1_000_000,
+        fused: bool = True,
         seed: int | None = None,
     ) -> None:
         check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol)
         self.max_states = check_int("max_states", max_states, 1)
+        self.fused = check_bool("fused", fused)
         super().__init__(env, seed)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -154,7 +156,7 @@ class PrioritizedSweeping(BaseAgent):
             s2 = self._row(obs)
             model.reserve(edges=1)
             draws.reserve()
-            return s2, int(model_step(*model.a, draws.src, s, a, r, self.gamma, s2, terminated, self.epsilon,
+            return s2, int(_model.ps_step(*model.a, draws.src, s, a, r, self.gamma, s2, terminated, self.epsilon,
                                       self.n_backups))
 
         self._ep_row, self._ep_action, n, ended = self._sarsa_steps(max_steps, self._ep_row, self._ep_action, update)
@@ -162,6 +164,43 @@ class PrioritizedSweeping(BaseAgent):
 
     def _end_episode(self) -> EpisodeRecord:
         return episode_record(self._ep_steps, self._ep_return, self.n_cells, self._ep_new)
+
+    def _fused_runner(self):
+        maze = _fused.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
+        if maze is None or maze.dynamics.walls.size > self.max_states:
+            return None  # (with fewer states than squares, the Python path says when max_states is reached)
+        h, w = maze.dynamics.walls.shape
+        args = _fused.maze_arguments(maze)
+        model = self._model
+
+        def kernel(pos, budget_steps, budget_episodes, rec):
+            return _fused.run_ps_grid_maze(*model.a, row_of, keys, T, TF, self.gamma, self.epsilon, self.n_backups,
+                                           self._rng, maze.np_random, *args, pos, budget_steps, budget_episodes, rec)
+
+        def run(max_steps: int, max_episodes: int, max_records: int):
+            nonlocal row_of, keys, T, TF
+            self._draws.sync()  # the loop draws from the generator itself
+            row_of = np.full((h, w), -1, dtype=np.int64)
+            keys = np.zeros((h * w, 2), dtype=np.int64)
+            for key, row in self._index.items():
+                row_of[int(key[1]), int(key[0])] = row
+                keys[row] = int(key[0]), int(key[1])
+            T = np.array([self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)],
+                         dtype=np.int64)
+            TF = np.array([self._ep_return])
+            first_new = model.n_states
+            steps, rows = _fused.drive(maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps,
+                                       max_episodes, max_records)
+            for row in range(first_new, model.n_states):
+                key = (float(keys[row, 0]), float(keys[row, 1]))
+                self._index[key] = row
+                self._keys.append(key)
+            self._ep_row, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:4])
+            self._ep_return = float(TF[0])
+            return steps, rows, bool(T[4])
+
+        row_of = keys = T = TF = None
+        return run
 
     # -- queries ----------------------------------------------------------------------------
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
@@ -202,16 +241,3 @@ class PrioritizedSweeping(BaseAgent):
         row, action, steps, new, ret = meta["episode"]
         self._ep_row, self._ep_action, self._ep_steps, self._ep_new = int(row), int(action), int(steps), int(new)
         self._ep_return = float(ret)
-
-
-@njit(cache=True)
-def model_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
-               C, MP, src, s, a, r, gamma, s2, terminated, epsilon, budget) -> int:
-    """One step of prioritized sweeping: record ``(s, a) -> s2`` with reward ``r`` (terminal: no successor),
-    plan (:func:`avq.agents._model.observe`), then the next action in ``s2`` (``a`` itself on a terminal
-    step, which draws nothing)."""
-    _model.observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                   prio, C, MP, s, a, r, gamma, -1 if terminated else s2, budget)
-    if terminated:
-        return a
-    return epsilon_greedy(src, Q, s2, epsilon)
