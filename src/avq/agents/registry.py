@@ -33,7 +33,7 @@ from avq.agents.sweeping import PrioritizedSweeping
 from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
-__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "TASK_DEFAULTS", "agent_defaults", "defaults_key",
+__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "TASK_DEFAULTS", "agent_defaults", "defaults_key",
            "make_agent"]
 
 #: name -> the agent's class.
@@ -163,6 +163,10 @@ TASK_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 
+#: The options of the agents that learn a model and plan over it (``tabular-ps``, ``avq-plan``).
+PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
+
+
 class DefaultsUsed(NamedTuple):
     """Which defaults :func:`make_agent` gave an agent: ``DEFAULTS[name][key]``, then ``explicit``."""
 
@@ -227,6 +231,11 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
         raise ValueError("seed is not an agent parameter here: pass it as seed= (on the command line, --seed)")
     valid = set(cls._param_names()) - {"seed"}
     unknown = sorted(set(overrides) - valid)
+    planning = [p for p in unknown if p in PLANNING_PARAMS]
+    if planning:
+        with_model = ", ".join(repr(n) for n, c in CLASSES.items() if set(PLANNING_PARAMS) <= set(c._param_names()))
+        raise ValueError(f"{planning[0]!r} is an option of planning over a learned model, and agent {name!r} has no "
+                         f"model; the agents that plan are {with_model}")
     if unknown:
         raise ValueError(
             f"unknown parameter {unknown[0]!r} for agent {name!r}; its parameters: {', '.join(sorted(valid))}"

@@ -22,7 +22,10 @@ def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_mi
     agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
     agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
     agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
-    agent.v_min = check_range("v_min", v_min, -np.inf, agent.v_opt, low_open=True)
+    agent.v_min = check_range("v_min", v_min, -np.inf, np.inf, low_open=True, high_open=True)
+    if agent.v_min > agent.v_opt:
+        raise ValueError(f"v_min ({agent.v_min}) must not exceed v_opt ({agent.v_opt}): v_min is the floor of every "
+                         "value, v_opt what an untried decision is worth")
     agent.known_after = check_int("known_after", known_after, 1)
     agent.n_backups = check_int("n_backups", n_backups, 0)
     agent.tol = check_range("tol", tol, 0.0, np.inf, low_open=True, high_open=True)
