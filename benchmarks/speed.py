@@ -6,6 +6,11 @@ shared and noisy), plus the absolute number:
 1. fused training on GridMaze ``lau2002`` (``avq-paper``, ``avq``, ``tabular``) against a
    minimal hand-written Numba tabular Sarsa(λ) with the maze inside the loop
    (:func:`reference_steps_per_second`, the practical speed limit for this work);
+1b. training with planning on GridMaze ``lau2002`` (``avq-plan``, ``tabular-ps``, fused, their default
+   backup budget): env steps per second from the start of learning (exploring, the model growing) and
+   once learned, and backups per second against a hand-written compiled loop of the same backup
+   (Bellman backups over a deterministic model held as dense arrays, no queue: the speed limit of a
+   backup here);
 2. the generic path (AVQ stepping a Gymnasium environment from Python) against a
    loop that only steps the same environment with pre-drawn random actions, on classic
    tasks and on ``bench/CopyMaze-v0``: ``lau2002`` under an id avq does not know (a
@@ -117,6 +122,58 @@ def avq_fused_steps_per_second(name: str, episodes: int) -> tuple[float, int]:
         agent.learn(total_episodes=episodes)
         best = max(best, (agent.num_timesteps - before) / (time.perf_counter() - t))
     return best, agent.n_cells
+
+
+@njit(cache=True)
+def _reference_backups(n_sweeps, nxt, rew, V):
+    """Value iteration sweeps over a deterministic model: ``Q[s, a] = rew[s, a] + V[nxt[s, a]]`` (-1: terminal),
+    ``V[s] = max_a Q[s, a]``. Returns the backups done (one per state)."""
+    n, m = nxt.shape
+    done = 0
+    for _ in range(n_sweeps):
+        for s in range(n):
+            best = -np.inf
+            for a in range(m):
+                t = nxt[s, a]
+                q = rew[s, a] + (V[t] if t >= 0 else 0.0)
+                if q > best:
+                    best = q
+            V[s] = best
+            done += 1
+    return done
+
+
+def reference_backups_per_second(n_states: int = 98, n_sweeps: int = 20_000) -> float:
+    rng = np.random.default_rng(0)
+    nxt = rng.integers(-1, n_states, size=(n_states, 4))
+    rew = -rng.random((n_states, 4))
+    V = np.zeros(n_states)
+    _reference_backups(2, nxt, rew, V)
+    best = 0.0
+    for _ in range(3):
+        t = time.perf_counter()
+        done = _reference_backups(n_sweeps, nxt, rew, V)
+        best = max(best, done / (time.perf_counter() - t))
+    return best
+
+
+def planning_steps_per_second(name: str, episodes: int) -> tuple[float, float, float, int]:
+    """``(steps/s while learning from scratch, steps/s once learned, backups/s while learning, cells)`` on the
+    fused path, the best of 3 runs (the first episodes of the first run compile nothing: warmed up before)."""
+    avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=99).learn(total_episodes=5)  # compile
+    fresh = learned = rate = 0.0
+    for rep in range(3):
+        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep)
+        t = time.perf_counter()
+        agent.learn(total_episodes=episodes)
+        dt = time.perf_counter() - t
+        fresh = max(fresh, agent.num_timesteps / dt)
+        rate = max(rate, agent.backups_ / dt)
+        before = agent.num_timesteps
+        t = time.perf_counter()
+        agent.learn(total_episodes=episodes)
+        learned = max(learned, (agent.num_timesteps - before) / (time.perf_counter() - t))
+    return fresh, learned, rate, agent.n_cells
 
 
 def env_only_steps_per_second(env_id: str, n_steps: int) -> float:
@@ -236,11 +293,22 @@ def main() -> None:
         sps, cells = avq_fused_steps_per_second(name, int(10000 * scale) or 100)
         print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
 
+    ref_b = reference_backups_per_second()
+    print(f"\n1b. training with planning on GridMaze lau2002, fused, default budget (reference: value iteration "
+          f"sweeps by hand, {ref_b / 1e6:.1f} M backups/s)")
+    print(f"   {'agent':<10} {'M steps/s learning':>19} {'once learned':>13} {'M backups/s':>12} {'of reference':>13} "
+          f"{'cells':>6}")
+    for name in ("avq-plan", "tabular-ps"):
+        fresh, learned, rate, cells = planning_steps_per_second(name, int(2000 * scale) or 100)
+        print(f"   {name:<10} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>12.2f} {rate / ref_b:>12.0%} "
+              f"{cells:>6}")
+
     print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")
     print(f"   {'env':<18} {'agent':<10} {'k steps/s':>10} {'env only':>10} {'ratio':>6} {'agent µs/step':>14}")
     n = int(100_000 * scale)
     for env_id, name in (("bench/CopyMaze-v0", "avq-paper"), ("bench/CopyMaze-v0", "avq"),
-                         ("bench/CopyMaze-v0", "tabular"), ("MountainCar-v0", "avq"), ("MountainCar-v0", "tiles"),
+                         ("bench/CopyMaze-v0", "tabular"), ("bench/CopyMaze-v0", "avq-plan"),
+                         ("bench/CopyMaze-v0", "tabular-ps"), ("MountainCar-v0", "avq"), ("MountainCar-v0", "tiles"),
                          ("MountainCar-v0", "grid"), ("avq/RobotMaze-v0", "avq")):
         sps, base = paired_generic(name, env_id, n, reps=3 if args.quick else 5)
         work = (1 / sps - 1 / base) * 1e6

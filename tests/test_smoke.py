@@ -27,9 +27,9 @@ CONTINUOUS_ACTIONS = {"avq-actions", "uniform-actions"}
 
 
 def overrides(agent, env_name):
-    if env_name == "cartpole" and agent in ("avq", "avq-plan", "grid", "tiles"):
+    if env_name == "cartpole" and agent in ("avq", "avq-plan", "grid", "grid-ps", "tiles"):
         return {"obs_bounds": CARTPOLE_BOUNDS}
-    if env_name == "robot-maze-sonar" and agent == "grid":
+    if env_name == "robot-maze-sonar" and agent in ("grid", "grid-ps"):
         return {"bins": 2}  # 18 dimensions: 10 bins each would be 10**18 rows
     return {}
 
@@ -84,4 +84,5 @@ def test_check_env_on_every_registered_avq_env(env_id):
 
 
 def test_registered_names():
-    assert {"avq", "avq-paper", "avq-plan", "tabular", "tabular-ps", "grid", "tiles"} <= set(AGENTS)
+    assert {"avq", "avq-paper", "avq-plan", "tabular", "tabular-ps", "grid", "grid-ps", "tiles"} <= set(
+        AGENTS)

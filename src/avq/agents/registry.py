@@ -39,7 +39,8 @@ __all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "
 #: name -> the agent's class.
 CLASSES: dict[str, type[BaseAgent]] = {
     "avq-paper": AVQSarsa, "avq": AVQSarsa, "avq-maze": AVQSarsa, "tabular": TabularSarsa, "grid": GridSarsa,
-    "tiles": TileSarsa, "tabular-ps": PrioritizedSweeping, "avq-plan": PlanningAVQ,
+    "tiles": TileSarsa, "tabular-ps": PrioritizedSweeping, "grid-ps": PrioritizedSweeping,
+    "avq-plan": PlanningAVQ,
     "avq-actions": ActionCodebookSarsa, "uniform-actions": ActionCodebookSarsa,
 }
 
@@ -92,6 +93,12 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # (below any return of an episode on avq's mazes). n_backups: see docs/RESULTS.md, "Planning".
     "tabular-ps": {
         "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=1e-6),
+    },
+    # The same planner on a fixed uniform grid (10 bins per dimension, as "grid"): the full-resolution
+    # reference for avq-plan on continuous tasks (on RobotMaze, one bin per lattice step of the move).
+    "grid-ps": {
+        "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=1e-6,
+                  bins=10, obs_bounds=None),
     },
     # AVQ with a model of its cells and planning over it (docs/RESULTS.md, "Planning").
     "avq-plan": {

@@ -3,14 +3,17 @@ baseline ``tabular-ps``."""
 
 from __future__ import annotations
 
-from typing import Any
+import math
+from typing import Any, Sequence
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import check_bool, check_int, check_range
+from avq._validate import check_bool, check_int, check_int_or_ints, check_per_dimension, check_range
 from avq.agents import _fused, _model
+from avq.agents.grid import bin_coordinates
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
 __all__ = ["PrioritizedSweeping", "check_planning_params"]
@@ -44,7 +47,8 @@ class PrioritizedSweeping(BaseAgent):
 
     Args:
         env: A Gymnasium environment (or registered id) with ``Discrete`` actions and a ``Discrete`` or
-            ``Box`` observation space whose observations repeat exactly (the grid maze's ``(x, y)``).
+            ``Box`` observation space whose observations repeat exactly (the grid maze's ``(x, y)``), or
+            any ``Box`` space with ``bins``.
         gamma: Discount γ of the planned values, in [0, 1]. With γ = 1 the values of a task whose
             rewards can be positive along a cycle do not converge; ``v_min`` bounds them from below.
         epsilon: Exploration rate on top of optimism, in [0, 1].
@@ -55,6 +59,9 @@ class PrioritizedSweeping(BaseAgent):
             for deterministic tasks; more for noisy ones).
         n_backups: Backups per step beyond the one of the pair just tried (0: no planning beyond it).
         tol: Smallest change of a value that is propagated to its predecessors.
+        bins: None: a state per distinct observation. Else a state per bin of a uniform grid over the
+            observation bounds, as ``grid`` cuts it: bins per dimension (an int, or one per dimension).
+        obs_bounds: With ``bins``: ``(low, high)`` per dimension (None keeps the space's).
         max_states: Upper bound on the number of states; an observation beyond it is an error.
         fused: On ``avq/GridMaze-v0`` (standard wrappers only), run the maze and the agent in one compiled
             loop; the same results as stepping the environment from Python.
@@ -78,14 +85,30 @@ class PrioritizedSweeping(BaseAgent):
         known_after: int = 1,
         n_backups: int = 100,
         tol: float = 1e-6,
+        bins: int | Sequence[int] | None = None,
+        obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_states: int = 1_000_000,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:
         check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol)
+        self.bins = None if bins is None else check_int_or_ints("bins", bins)
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        if self.obs_bounds is not None and self.bins is None:
+            raise ValueError("obs_bounds is the box that bins cuts: give bins too (or neither, for a state per "
+                             "distinct observation)")
         self.max_states = check_int("max_states", max_states, 1)
         self.fused = check_bool("fused", fused)
         super().__init__(env, seed)
+        if self.bins is not None:
+            self._low, high = resolve_bounds(self.env.observation_space, self.obs_bounds)
+            n = self._low.shape[0]
+            self._bins = np.full(n, check_per_dimension("bins", self.bins, n), dtype=np.int64)
+            if math.prod(self._bins.tolist()) > 1 << 62:
+                raise ValueError(f"bins gives {math.prod(self._bins.tolist()):.3g} bins in {n} dimensions, more than a "
+                                 "bin index can hold; use fewer bins or avq-plan")
+            self._bins_per_unit = self._bins / (high - self._low)
+            self._strides = np.array([math.prod(self._bins[d + 1:].tolist()) for d in range(n)], dtype=np.int64)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         if not isinstance(act_space, spaces.Discrete):
@@ -93,6 +116,8 @@ class PrioritizedSweeping(BaseAgent):
         if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
             raise ValueError(f"PrioritizedSweeping needs a Discrete or Box observation space, not {obs_space}")
         self._discrete = isinstance(obs_space, spaces.Discrete)
+        if self.bins is not None:
+            check_box_discrete("PrioritizedSweeping with bins", obs_space, act_space, "it is a table already")
 
     # -- learned state ------------------------------------------------------------------
     @property
@@ -105,6 +130,7 @@ class PrioritizedSweeping(BaseAgent):
 
     @property
     def states_(self) -> np.ndarray:
+        """The states' keys in the order first seen: observations ``(k, n)``, or ``(k, 1)`` bin or Discrete indices."""
         return np.array(self._keys, dtype=np.float64).reshape(len(self._keys), -1)
 
     @property
@@ -123,11 +149,14 @@ class PrioritizedSweeping(BaseAgent):
         self._ep_return = 0.0
 
     def _key(self, obs: Any) -> Any:
+        """The state's key: the observation (a tuple), its flat bin index with ``bins``, or a Discrete index."""
         if self._discrete:
             return int(obs)
         x = np.asarray(obs, dtype=np.float64)
         if x.shape != self.env.observation_space.shape:
             raise ValueError(f"observation has shape {x.shape}; the space says {self.env.observation_space.shape}")
+        if self.bins is not None:
+            return int(bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides)
         return tuple(x.tolist())
 
     def _row(self, obs: Any, create: bool = True) -> int:
@@ -169,7 +198,8 @@ class PrioritizedSweeping(BaseAgent):
         return episode_record(self._ep_steps, self._ep_return, self.n_cells, self._ep_new)
 
     def _fused_runner(self):
-        maze = _fused.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
+        maze = (_fused.plan(self.env, grid_only=True) if self.fused and not self._discrete and self.bins is None
+                else None)
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer states than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
@@ -238,7 +268,7 @@ class PrioritizedSweeping(BaseAgent):
         if len(states) != self._model.n_states:
             raise ValueError(f"{len(states)} observations for a model of {self._model.n_states} states")
         for row, x in enumerate(states):
-            key = int(x[0]) if self._discrete else tuple(float(v) for v in x)
+            key = int(x[0]) if self._discrete or self.bins is not None else tuple(float(v) for v in x)
             self._index[key] = row
             self._keys.append(key)
         row, action, steps, new, ret = meta["episode"]
