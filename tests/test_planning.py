@@ -305,3 +305,25 @@ def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
             break
     assert avq.evaluate_maze(agent, env())["success_rate"] >= 0.95
     assert agent.n_cells < 98 and agent.num_timesteps < 20_000
+
+
+def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
+    # Cell 0 at (2, 2); decision 0 from (1, 2), (3, 1) and (3, 3). Cut around (1, 2) and (3, 1): the groups'
+    # mean starts are (1, 2) and (3, 2). With another vector at (4, 2), at distance 1 = d_min of (3, 2), the
+    # split is refused (SPEC §3); the starts (3, 1) and (3, 3) tie between (2, 2) and (4, 2): cell 0.
+    for extra, expected in ((None, 1), ((4.0, 2.0), -1)):
+        agent = plan_agent(d_min=1.0)
+        add_cell(agent, (2.0, 2.0))
+        if extra is not None:
+            add_cell(agent, extra)
+        for xs, x in (((1, 2), (1, 1)), ((3, 1), (3, 0)), ((3, 3), (3, 4))):
+            assert remember(agent, xs, 0, x, -1.0)[0] == 0
+        before = agent._V[: agent.n_cells].copy()
+        got = core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i,
+                              agent._mem_f, agent._e_xs, *agent._model.a, 0, 0, np.array([1.0, 2.0]),
+                              np.array([3.0, 1.0]))
+        assert got == expected
+        if expected < 0:
+            assert np.array_equal(agent._V[: agent.n_cells], before) and agent.n_cells == 2
+        else:
+            assert agent._V[0].tolist() == [1.0, 2.0] and agent._V[1].tolist() == [3.0, 2.0]

@@ -184,7 +184,8 @@ def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q
     """Cut cell ``i`` in two around two starts of decision ``a`` whose outcomes disagree: each remembered
     transition ``(i, a)`` goes with the nearer of ``seed_1`` and ``seed_2``; the cell's vector moves to the
     mean start of the first group and the mean start of the second becomes a new cell. Returns the new
-    cell, or -1 (nothing changed) when a group is empty or the two means lie within ``d_min``."""
+    cell, or -1 (nothing changed) when a group is empty or a mean lies within ``d_min`` of the other or of
+    another vector (SPEC §3: no vector within ``d_min`` of another)."""
     n = V.shape[1]
     g1 = np.zeros(n)
     g2 = np.zeros(n)
@@ -217,6 +218,9 @@ def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q
         gap += z * z
     if not np.sqrt(gap) > P[DMIN]:
         return -1
+    for k in range(S[SIZE]):  # SPEC §3: no vector within d_min of another
+        if k != i and (distance(V, k, g1, inv_scale) <= P[DMIN] or distance(V, k, g2, inv_scale) <= P[DMIN]):
+            return -1
     for d in range(n):
         V[i, d] = g1[d]
     c = _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,

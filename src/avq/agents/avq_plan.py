@@ -77,7 +77,7 @@ class PlanningAVQ(BaseAgent):
         d_min: float = 0.02,
         collision_growth: bool = True,
         outcome_split: bool = True,
-        split_threshold: float = 5.0,
+        split_threshold: float = 10.0,
         value_slope: float | None = None,
         memory: int = 100_000,
         scale: float | Sequence[float] | None = None,
