@@ -73,7 +73,7 @@ class PlanningAVQ(BaseAgent):
         v_min: float = -10_000.0,
         known_after: int = 1,
         n_backups: int = 100,
-        tol: float = 1e-6,
+        tol: float = 0.01,
         d_min: float = 0.02,
         collision_growth: bool = True,
         outcome_split: bool = True,

@@ -84,7 +84,7 @@ class PrioritizedSweeping(BaseAgent):
         v_min: float = -10_000.0,
         known_after: int = 1,
         n_backups: int = 100,
-        tol: float = 1e-6,
+        tol: float = 0.01,
         bins: int | Sequence[int] | None = None,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_states: int = 1_000_000,
