@@ -142,7 +142,7 @@ class PlanningAVQ(BaseAgent):
         self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY]] = (
             self.max_cells, self.n_backups, self.collision_growth, self.outcome_split, self.memory)
         self._S = np.zeros(core.N_S, dtype=np.int64)
-        self._F = np.zeros(core.N_F)
+        self._F = np.zeros(core.N_F + n + 1)
         self._xs = np.zeros(n)
         self._mem_x = np.zeros((self.memory, 2 * n))
         self._mem_i = np.zeros((self.memory, 3), dtype=np.int64)
