@@ -333,3 +333,23 @@ def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
             assert np.array_equal(agent._V[: agent.n_cells], before) and agent.n_cells == 3
         else:
             assert agent._V[0].tolist() == [1.0, 2.0] and agent._V[2].tolist() == [3.0, 2.0]
+
+
+def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
+    # One action, cells at (0, 0) and (4, 0). The observations go 0 -> 1 -> 0 -> 1 -> 0 (cells) and end at the
+    # goal. The third and fourth transitions return into the cell the decision before left; only the fourth
+    # returns by two decisions the model knew (each pair tried once before): its square (1, 0) gets a cell.
+    steps = [((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
+             ((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
+             ((3, 0), 5.0, True, False, False)]
+    env = scripted([((0, 0), steps)], n_actions=1)
+    agent = avq.PlanningAVQ(env, scale=1.0, d_min=0.1, collision_growth=False, outcome_split=False, cycle_split=True,
+                            seed=0)
+    agent._setup()
+    agent._is_setup = True
+    add_cell(agent, (0.0, 0.0))
+    add_cell(agent, (4.0, 0.0))
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 3 and agent.codebook_[2].tolist() == [1.0, 0.0]
+    # The last transition starts in the new cell: (2, 0) -> 1, the episode's end.
+    assert agent._mem_i[4].tolist() == [0, 2, -1]

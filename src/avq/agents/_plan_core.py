@@ -27,6 +27,8 @@ to the new one), so that the model describes the current partition by what was s
   structure (a wall, a dead end), not of distance: :func:`split_cell` cuts it in two around the two
   starts. Only outcomes that end in :func:`~avq.agents._model.settled` cells are compared, and only
   when the worse one is below the cell's next best decision (the split would change the policy).
+* ``cycle`` (as ``AVQSarsa``'s ``cycle_split``): when two decisions the model knew lead from a cell ``j``
+  to another and straight back into ``j``, the square of the return gets a cell of its own.
 
 State arrays: ``V`` ``(cap, n)`` the codebook; ``inv_scale``; ``P`` float and ``IP`` int
 parameters, ``S`` int and ``F`` float state (index names below; ``S[GEOM]`` counts the changes of
@@ -54,11 +56,13 @@ from avq.rules import APPEND, collision_rule
 GAMMA, EPS, DMIN, SPLIT_THRESHOLD, SLOPE = range(5)
 N_P = 5
 # IP: int parameters
-MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY = range(5)
-N_IP = 5
+MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY, CYCLE_SPLIT = range(6)
+N_IP = 6
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, IN_EPISODE, MEM_N, MEM_POS, SPLITS, GEOM = range(12)
-N_S = 12
+PREV_CELL, PREV_KNOWN = 12, 13  # the cell of the decision before the current one (-1 at an episode's start),
+# and whether that decision was of a known pair
+N_S = 14
 # F: float state: the current transition's return and discount, the episode's return, and the sums
 # that estimate the value's slope (return per unit of scaled distance travelled, and how many); then
 # n + 1 entries of scratch (F has N_F + n + 1 entries)
@@ -333,6 +337,8 @@ def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, h
     S[SPLITS] = 0
     S[DECISIONS] = 1
     S[IN_EPISODE] = 1
+    S[PREV_CELL] = -1
+    S[PREV_KNOWN] = 0
     F[RET] = 0.0
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
@@ -389,6 +395,20 @@ def step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum,
                                 e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
             else:
                 S[REFUSED] += 1
+    known = cnt[i, a] >= C[_model.KNOWN]  # (before this transition is recorded)
+    if IP[CYCLE_SPLIT] and not done and j == S[PREV_CELL] and j != i and known and S[PREV_KNOWN]:
+        # Two decisions the model knew led from cell j to i and straight back into j: a cycle that the
+        # greedy policy repeats for ever when the cells' values hold (as AVQSarsa's cycle_split; while
+        # exploring, such returns are the way to an untried decision). Give the square of the return a
+        # cell of its own (its decisions unknown, so the agent tries them there).
+        _, dn2 = nearest_index(V, S[SIZE], x, inv_scale)
+        if np.sqrt(dn2) > P[DMIN]:
+            if S[SIZE] < IP[MAX_CELLS]:
+                j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
+                                e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
+                S[SPLITS] += 1
+            else:
+                S[REFUSED] += 1
     cut = truncated and not terminated and j == i and not collision  # (cut short by the time limit: not learned)
     if not cut:
         jm = -1 if terminated else j
@@ -424,6 +444,8 @@ def step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum,
     if done:
         S[IN_EPISODE] = 0
         return ENDED
+    S[PREV_CELL] = i
+    S[PREV_KNOWN] = known
     S[CELL] = j
     for d in range(x.shape[0]):
         xs[d] = x[d]
