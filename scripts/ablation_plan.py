@@ -11,7 +11,7 @@ Rows:
 * ``default``: ``avq-plan`` as registered;
 * ``no model``: ``avq`` (Sarsa(λ) on the cells, no model; its maze defaults);
 * ``no optimism``: untried pairs worth the floor (``v_opt = v_min``), ε-greedy with ε 0.1 instead;
-* ``no collision growth``, ``no outcome split``: each growth rule off;
+* ``no collision growth``, ``no outcome split``: each growth rule off; ``cycle split on``: the option on;
 * ``budget 0``, ``budget 10``, ``budget 1000``: backups per transition beyond the pair's own state;
 * ``tabular-ps``: the reference.
 
@@ -41,6 +41,7 @@ VARIANTS = {
     "no optimism": ("avq-plan", {"v_opt": -10_000.0, "epsilon": 0.1}),
     "no collision growth": ("avq-plan", {"collision_growth": False}),
     "no outcome split": ("avq-plan", {"outcome_split": False}),
+    "cycle split on": ("avq-plan", {"cycle_split": True}),
     "budget 0": ("avq-plan", {"n_backups": 0}),
     "budget 10": ("avq-plan", {"n_backups": 10}),
     "budget 1000": ("avq-plan", {"n_backups": 1000}),

@@ -267,33 +267,37 @@ def test_split_cell_cuts_the_cell_around_the_two_starts_and_moves_its_transition
     agent = plan_agent()
     add_cell(agent, (3.0, 1.0))
     add_cell(agent, (3.0, 5.0))
-    # Cell 0, action 1 (East), from four starts; (1, 3) and (2, 3) tie between (3, 1) and (3, 5): cell 0.
-    for xs, x in (((1, 1), (3, 1)), ((2, 1), (4, 1)), ((1, 2), (3, 2)), ((1, 3), (2, 3))):
+    # Cell 0, action 1 (East): from (1, 1) and (2, 1) to cell 0 (one successor, mean start (1.5, 1)); from
+    # (1, 3), which ties between (3, 1) and (3, 5) and so is in cell 0, to (3, 4) in cell 1.
+    for xs, x in (((1, 1), (3, 1)), ((2, 1), (4, 1)), ((1, 3), (3, 4))):
         remember(agent, xs, 1, x, -1.0)
-    assert agent._mem_i[:4].tolist() == [[1, 0, 0]] * 4
+    assert agent._mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 0, 1]]
     c = core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i, agent._mem_f,
                         agent._e_xs, *agent._model.a, 0, 1, np.array([1.0, 1.0]), np.array([1.0, 3.0]))
     assert c == 2
-    # Nearer (1, 1) (ties too): (1, 1), (2, 1), (1, 2), mean (4/3, 4/3), the cell's new vector; nearer
-    # (1, 3): (1, 3) alone, the new cell.
-    assert agent._V[0] == pytest.approx([4 / 3, 4 / 3]) and agent._V[2].tolist() == [1.0, 3.0]
-    # By the new vectors, the last transition starts (0 from (1, 3)) and ends ((2, 3): 1 from cell 2, 3.2 from
-    # cell 0, 5 from cell 1) in cell 2; the others stay in cell 0.
-    assert agent._mem_i[:4].tolist() == [[1, 0, 0]] * 3 + [[1, 2, 2]]
+    # Each successor's transitions go with the seed nearer their mean start: cell 0's (mean (1.5, 1)) with
+    # (1, 1), cell 1's ((1, 3)) with (1, 3). The cell's vector moves to (1.5, 1); (1, 3) is the new cell.
+    assert agent._V[0].tolist() == [1.5, 1.0] and agent._V[2].tolist() == [1.0, 3.0]
+    # By the new vectors the third transition starts in cell 2 and still ends in cell 1 ((3, 4): 1 from
+    # (3, 5), sqrt(5) from (1, 3)); the others stay in cell 0.
+    assert agent._mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 2, 1]]
     m = agent._model.a
-    assert m.cnt[2, 1] == 1 and m.cnt[0, 1] == 3
+    assert m.cnt[2, 1] == 1 and m.cnt[0, 1] == 2
     assert int(m.C[BACKUPS]) == 0 and m.hpos[0] >= 0 and m.hpos[2] >= 0  # both queued for a backup
 
 
-def test_split_cell_refuses_starts_within_d_min():
+def test_split_cell_refuses_mean_starts_within_d_min_of_each_other():
+    # Two successors of (0, 0), from (1, 1) to cell 1 and from (2, 2) to cell 0: the groups' mean starts are
+    # sqrt(2) apart, within d_min = 5.
     agent = plan_agent(d_min=5.0)
     add_cell(agent, (3.0, 3.0))
-    remember(agent, (1, 1), 0, (1, 0), -10.0)
+    add_cell(agent, (20.0, 20.0))
+    remember(agent, (1, 1), 0, (20, 20), -10.0)
     remember(agent, (2, 2), 0, (2, 1), -1.0)
-    before = agent._V[:1].copy()
+    before = agent._V[:2].copy()
     assert core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i, agent._mem_f,
                            agent._e_xs, *agent._model.a, 0, 0, np.array([1.0, 1.0]), np.array([2.0, 2.0])) == -1
-    assert np.array_equal(agent._V[:1], before) and agent.n_cells == 1
+    assert np.array_equal(agent._V[:2], before) and agent.n_cells == 2
 
 
 def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
@@ -308,15 +312,17 @@ def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
 
 
 def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
-    # Cell 0 at (2, 2); decision 0 from (1, 2), (3, 1) and (3, 3). Cut around (1, 2) and (3, 1): the groups'
-    # mean starts are (1, 2) and (3, 2). With another vector at (4, 2), at distance 1 = d_min of (3, 2), the
-    # split is refused (SPEC §3); the starts (3, 1) and (3, 3) tie between (2, 2) and (4, 2): cell 0.
-    for extra, expected in ((None, 1), ((4.0, 2.0), -1)):
+    # Cell 0 at (2, 2), cell 1 at (2, 5). Decision 0 from (1, 2) to cell 0, and from (3, 1) and (3, 3) to cell 1
+    # (that successor's mean start: (3, 2)). Cut around (1, 2) and (3, 1): the groups' mean starts are (1, 2)
+    # and (3, 2). With another vector at (4, 2), at distance 1 = d_min of (3, 2), the split is refused
+    # (SPEC §3); the starts (3, 1) and (3, 3) tie between (2, 2) and (4, 2): cell 0.
+    for extra, expected in ((None, 2), ((4.0, 2.0), -1)):
         agent = plan_agent(d_min=1.0)
         add_cell(agent, (2.0, 2.0))
+        add_cell(agent, (2.0, 5.0))
         if extra is not None:
             add_cell(agent, extra)
-        for xs, x in (((1, 2), (1, 1)), ((3, 1), (3, 0)), ((3, 3), (3, 4))):
+        for xs, x in (((1, 2), (1, 1)), ((3, 1), (2, 5)), ((3, 3), (2, 5))):
             assert remember(agent, xs, 0, x, -1.0)[0] == 0
         before = agent._V[: agent.n_cells].copy()
         got = core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i,
@@ -324,6 +330,26 @@ def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
                               np.array([3.0, 1.0]))
         assert got == expected
         if expected < 0:
-            assert np.array_equal(agent._V[: agent.n_cells], before) and agent.n_cells == 2
+            assert np.array_equal(agent._V[: agent.n_cells], before) and agent.n_cells == 3
         else:
-            assert agent._V[0].tolist() == [1.0, 2.0] and agent._V[1].tolist() == [3.0, 2.0]
+            assert agent._V[0].tolist() == [1.0, 2.0] and agent._V[2].tolist() == [3.0, 2.0]
+
+
+def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
+    # One action, cells at (0, 0) and (4, 0). The observations go 0 -> 1 -> 0 -> 1 -> 0 (cells) and end at the
+    # goal. The third and fourth transitions return into the cell the decision before left; only the fourth
+    # returns by two decisions the model knew (each pair tried once before): its square (1, 0) gets a cell.
+    steps = [((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
+             ((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
+             ((3, 0), 5.0, True, False, False)]
+    env = scripted([((0, 0), steps)], n_actions=1)
+    agent = avq.PlanningAVQ(env, scale=1.0, d_min=0.1, collision_growth=False, outcome_split=False, cycle_split=True,
+                            seed=0)
+    agent._setup()
+    agent._is_setup = True
+    add_cell(agent, (0.0, 0.0))
+    add_cell(agent, (4.0, 0.0))
+    agent.learn(total_episodes=1)
+    assert agent.n_cells == 3 and agent.codebook_[2].tolist() == [1.0, 0.0]
+    # The last transition starts in the new cell: (2, 0) -> 1, the episode's end.
+    assert agent._mem_i[4].tolist() == [0, 2, -1]

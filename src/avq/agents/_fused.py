@@ -273,12 +273,17 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
                   robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
                   max_episode_steps, pos, budget_steps, budget_episodes, rec):
     """Train ``avq-plan`` on a maze: :func:`avq.agents._plan_core.start` and ``step`` at every step, as
-    ``PlanningAVQ`` does stepping the environment. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY``
-    when the arrays may not hold what the next step adds."""
+    ``PlanningAVQ`` does stepping the environment. On GridMaze the nearest cell of every square is kept
+    while the codebook does not change. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
+    arrays may not hold what the next step adds."""
     steps = 0
     episodes = 0
     x = np.empty(V.shape[1])
     sonar = np.empty(dirs.shape[0])
+    cache_shape = (1, 1) if robot else walls.shape
+    cell_cache = np.full(cache_shape, -1, dtype=np.int64)
+    dist_cache = np.zeros(cache_shape)
+    cache_geom = -1
     while True:
         if not plan_core.room_left(V, S, C, e_to, cnt) or e_xs.shape[0] < e_to.shape[0]:
             return steps, episodes, NEED_CAPACITY
@@ -298,9 +303,19 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
         truncated = pos[2] >= max_episode_steps
         _observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
         steps += 1
-        a = plan_core.step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
-                           e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x, r,
-                           collision, terminated, truncated)
+        if robot:
+            j, d2 = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
+        else:
+            if cache_geom != S[plan_core.GEOM]:
+                cell_cache[:, :] = -1
+                cache_geom = S[plan_core.GEOM]
+            iy, ix = int(pos[1]), int(pos[0])
+            if cell_cache[iy, ix] < 0:
+                cell_cache[iy, ix], dist_cache[iy, ix] = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
+            j, d2 = cell_cache[iy, ix], dist_cache[iy, ix]
+        a = plan_core.step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
+                              e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x,
+                              r, collision, terminated, truncated, j, d2)
         if a == plan_core.ENDED:
             plan_core.end_record(S, F, rec[episodes])
             episodes += 1

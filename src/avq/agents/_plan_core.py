@@ -27,9 +27,12 @@ to the new one), so that the model describes the current partition by what was s
   structure (a wall, a dead end), not of distance: :func:`split_cell` cuts it in two around the two
   starts. Only outcomes that end in :func:`~avq.agents._model.settled` cells are compared, and only
   when the worse one is below the cell's next best decision (the split would change the policy).
+* ``cycle`` (as ``AVQSarsa``'s ``cycle_split``): when two decisions the model knew lead from a cell ``j``
+  to another and straight back into ``j``, the square of the return gets a cell of its own.
 
 State arrays: ``V`` ``(cap, n)`` the codebook; ``inv_scale``; ``P`` float and ``IP`` int
-parameters, ``S`` int and ``F`` float state (index names below); ``xs`` the observation that
+parameters, ``S`` int and ``F`` float state (index names below; ``S[GEOM]`` counts the changes of
+the codebook, so that a caller may keep the cells of observations it sees again); ``xs`` the observation that
 started the current transition; the memory ``mem_x`` ``(M, 2n)`` start and end observations,
 ``mem_i`` ``(M, 3)`` action, start cell, end cell (-1: terminal), ``mem_f`` ``(M, 2)`` return and
 discount; ``e_xs`` ``(edges, n)`` the sum of the starts of each edge's transitions. The model's
@@ -53,13 +56,16 @@ from avq.rules import APPEND, collision_rule
 GAMMA, EPS, DMIN, SPLIT_THRESHOLD, SLOPE = range(5)
 N_P = 5
 # IP: int parameters
-MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY = range(5)
-N_IP = 5
+MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY, CYCLE_SPLIT = range(6)
+N_IP = 6
 # S: int state
-SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, IN_EPISODE, MEM_N, MEM_POS, SPLITS = range(11)
-N_S = 11
+SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, IN_EPISODE, MEM_N, MEM_POS, SPLITS, GEOM = range(12)
+PREV_CELL, PREV_KNOWN = 12, 13  # the cell of the decision before the current one (-1 at an episode's start),
+# and whether that decision was of a known pair
+N_S = 14
 # F: float state: the current transition's return and discount, the episode's return, and the sums
-# that estimate the value's slope (return per unit of scaled distance travelled, and how many)
+# that estimate the value's slope (return per unit of scaled distance travelled, and how many); then
+# n + 1 entries of scratch (F has N_F + n + 1 entries)
 RET, DISC, EP_RETURN, SLOPE_SUM, SLOPE_N = range(5)
 N_F = 5
 #: Statuses of :func:`step` (an action, >= 0, while the episode goes on).
@@ -162,6 +168,7 @@ def _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_he
         V[c, d] = x[d]
     S[SIZE] = c + 1
     S[APPENDS] += 1
+    S[GEOM] += 1
     _model.add_state(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
                      prio, C, MP)
     return c
@@ -181,9 +188,10 @@ def append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, 
 @njit(cache=True)
 def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r,
                p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, i: int, a: int, seed_1, seed_2) -> int:
-    """Cut cell ``i`` in two around two starts of decision ``a`` whose outcomes disagree: each remembered
-    transition ``(i, a)`` goes with the nearer of ``seed_1`` and ``seed_2``; the cell's vector moves to the
-    mean start of the first group and the mean start of the second becomes a new cell. Returns the new
+    """Cut cell ``i`` in two around two starts of decision ``a`` whose outcomes disagree: the transitions of
+    each successor of ``(i, a)`` go with the nearer of ``seed_1`` and ``seed_2`` to their mean start; the
+    cell's vector moves to the mean start of the first group and the mean start of the second becomes a
+    new cell. Returns the new
     cell, or -1 (nothing changed) when a group is empty or a mean lies within ``d_min`` of the other or of
     another vector (SPEC §3: no vector within ``d_min`` of another)."""
     n = V.shape[1]
@@ -191,23 +199,26 @@ def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q
     g2 = np.zeros(n)
     n1 = 0
     n2 = 0
-    for t in range(S[MEM_N]):
-        if mem_i[t, 1] == i and mem_i[t, 0] == a:
+    e = head[i, a]
+    while e >= 0:  # each successor's transitions go together, by the mean of their starts
+        k = e_n[e]
+        if k > 0:
             d1 = 0.0
             d2 = 0.0
             for d in range(n):
-                z1 = (mem_x[t, d] - seed_1[d]) * inv_scale[d]
-                z2 = (mem_x[t, d] - seed_2[d]) * inv_scale[d]
+                z1 = (e_xs[e, d] / k - seed_1[d]) * inv_scale[d]
+                z2 = (e_xs[e, d] / k - seed_2[d]) * inv_scale[d]
                 d1 += z1 * z1
                 d2 += z2 * z2
             if d1 <= d2:
-                n1 += 1
+                n1 += k
                 for d in range(n):
-                    g1[d] += mem_x[t, d]
+                    g1[d] += e_xs[e, d]
             else:
-                n2 += 1
+                n2 += k
                 for d in range(n):
-                    g2[d] += mem_x[t, d]
+                    g2[d] += e_xs[e, d]
+        e = e_next[e]
     if n1 == 0 or n2 == 0:
         return -1
     gap = 0.0
@@ -223,6 +234,7 @@ def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q
             return -1
     for d in range(n):
         V[i, d] = g1[d]
+    S[GEOM] += 1
     c = _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
                   hpos, prio, C, MP, g2)
     relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head,
@@ -325,6 +337,8 @@ def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, h
     S[SPLITS] = 0
     S[DECISIONS] = 1
     S[IN_EPISODE] = 1
+    S[PREV_CELL] = -1
+    S[PREV_KNOWN] = 0
     F[RET] = 0.0
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
@@ -346,13 +360,24 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, he
     for d in range(x.shape[0]):
         if not math.isfinite(x[d]):
             return NOT_FINITE
+    j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
+    return step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next,
+                   e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r, collision,
+                   terminated, truncated, j, d2)
+
+
+@njit(cache=True)
+def step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
+            e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r: float, collision: bool,
+            terminated: bool, truncated: bool, j: int, d2: float) -> int:
+    """:func:`step` with the nearest vector ``j`` of ``x`` and its squared distance ``d2`` already known (a
+    finite ``x`` and ``r``)."""
     i = S[CELL]
     a = S[ACTION]
     S[EP_STEPS] += 1
     F[RET] += F[DISC] * r
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
-    j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
     done = terminated or truncated
     if j == i and not (collision or done):
         return a
@@ -370,13 +395,27 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, he
                                 e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
             else:
                 S[REFUSED] += 1
+    known = cnt[i, a] >= C[_model.KNOWN]  # (before this transition is recorded)
+    if IP[CYCLE_SPLIT] and not done and j == S[PREV_CELL] and j != i and known and S[PREV_KNOWN]:
+        # Two decisions the model knew led from cell j to i and straight back into j: a cycle that the
+        # greedy policy repeats for ever when the cells' values hold (as AVQSarsa's cycle_split; while
+        # exploring, such returns are the way to an untried decision). Give the square of the return a
+        # cell of its own (its decisions unknown, so the agent tries them there).
+        _, dn2 = nearest_index(V, S[SIZE], x, inv_scale)
+        if np.sqrt(dn2) > P[DMIN]:
+            if S[SIZE] < IP[MAX_CELLS]:
+                j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
+                                e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
+                S[SPLITS] += 1
+            else:
+                S[REFUSED] += 1
     cut = truncated and not terminated and j == i and not collision  # (cut short by the time limit: not learned)
     if not cut:
         jm = -1 if terminated else j
         # Does the outcome disagree with what this decision led to before, more than distance explains?
         # (asked before the transition is recorded)
         n = x.shape[0]
-        other = np.empty(n + 1)
+        other = F[N_F:N_F + n + 1]  # (scratch)
         excess = -np.inf
         if IP[OUTCOME_SPLIT] and cnt[i, a] >= C[_model.KNOWN] and settled(cnt, C, jm):
             seen = F[RET] + (0.0 if terminated else F[DISC] * Vm[j])
@@ -405,6 +444,8 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, he
     if done:
         S[IN_EPISODE] = 0
         return ENDED
+    S[PREV_CELL] = i
+    S[PREV_KNOWN] = known
     S[CELL] = j
     for d in range(x.shape[0]):
         xs[d] = x[d]

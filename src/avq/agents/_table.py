@@ -12,11 +12,39 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 
 from avq.agents._td import clear_traces, decide, table_step
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
-__all__ = ["TableSarsa"]
+__all__ = ["TableSarsa", "observation_key", "greedy_over_rows"]
+
+
+def observation_key(space: Any, obs: Any) -> Any:
+    """The key of one observation in a table of distinct observations: the index of a ``Discrete`` space,
+    else the observation as a tuple of floats (its shape checked against the space's)."""
+    if isinstance(space, spaces.Discrete):
+        return int(obs)
+    x = np.asarray(obs, dtype=np.float64)
+    if x.shape != space.shape:
+        raise ValueError(f"observation has shape {x.shape}; the space says {space.shape}")
+    return tuple(x.tolist())
+
+
+def greedy_over_rows(space: Any, obs: np.ndarray, row: Any, Q: np.ndarray) -> np.ndarray:
+    """The greedy action (lowest index on ties) of each observation of a batch from the rows of ``Q``;
+    ``row(o, create=False)`` gives an observation's row, -1 for one never seen (action 0). Observations
+    of a ``Discrete`` space must be in it."""
+    if isinstance(space, spaces.Discrete):
+        bad = [o for o in obs if o != int(o) or not space.contains(int(o))]
+        if bad:
+            raise ValueError(f"observation {bad[0]!r} is not in the observation space {space}")
+    out = np.zeros(len(obs), dtype=np.int64)
+    for b, o in enumerate(obs):
+        r = row(o, create=False)
+        if r >= 0:
+            out[b] = int(Q[r].argmax())
+    return out
 
 class TableSarsa(BaseAgent):
     """Base of the table agents: ``_q``, ``_e`` ``(rows, m)``, the active list ``_act`` of

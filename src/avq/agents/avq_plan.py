@@ -43,6 +43,8 @@ class PlanningAVQ(BaseAgent):
             more than ``split_threshold`` beyond what the distance between their starts explains
             (:mod:`avq.agents._plan_core`).
         split_threshold: That excess, > 0.
+        cycle_split: When two decisions lead from a cell to another and straight back, give the square
+            of the return a cell of its own (as ``AVQSarsa``'s ``cycle_split``).
         value_slope: The value's slope ``L`` of that rule, per unit of scaled distance; None: estimated
             online (the mean return per scaled distance travelled by the transitions without collision).
         memory: Aggregate transitions remembered, from which the model follows the cells as they
@@ -77,6 +79,7 @@ class PlanningAVQ(BaseAgent):
         d_min: float = 0.02,
         collision_growth: bool = True,
         outcome_split: bool = True,
+        cycle_split: bool = False,
         split_threshold: float = 10.0,
         value_slope: float | None = None,
         memory: int = 100_000,
@@ -90,6 +93,7 @@ class PlanningAVQ(BaseAgent):
         self.d_min = check_range("d_min", d_min, 0.0, np.inf, high_open=True)
         self.collision_growth = check_bool("collision_growth", collision_growth)
         self.outcome_split = check_bool("outcome_split", outcome_split)
+        self.cycle_split = check_bool("cycle_split", cycle_split)
         self.split_threshold = check_range("split_threshold", split_threshold, 0.0, np.inf, low_open=True,
                                            high_open=True)
         self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
@@ -139,10 +143,11 @@ class PlanningAVQ(BaseAgent):
             self.gamma, self.epsilon, self.d_min, self.split_threshold,
             -1.0 if self.value_slope is None else self.value_slope)
         self._IP = np.zeros(core.N_IP, dtype=np.int64)
-        self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY]] = (
-            self.max_cells, self.n_backups, self.collision_growth, self.outcome_split, self.memory)
+        self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY,
+                  core.CYCLE_SPLIT]] = (self.max_cells, self.n_backups, self.collision_growth, self.outcome_split,
+                                        self.memory, self.cycle_split)
         self._S = np.zeros(core.N_S, dtype=np.int64)
-        self._F = np.zeros(core.N_F)
+        self._F = np.zeros(core.N_F + n + 1)
         self._xs = np.zeros(n)
         self._mem_x = np.zeros((self.memory, 2 * n))
         self._mem_i = np.zeros((self.memory, 3), dtype=np.int64)

@@ -110,7 +110,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # against 0.63 M, with no fewer env steps on lau2002 k = 2, 4 and a generated maze of side 22).
     "avq-plan": {
         "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=0.01,
-                  d_min=0.02, collision_growth=True, outcome_split=True, split_threshold=10.0, value_slope=None, memory=100_000,
+                  d_min=0.02, collision_growth=True, outcome_split=True, cycle_split=False, split_threshold=10.0, value_slope=None, memory=100_000,
                   scale=None, max_cells=10_000),
     },
     # The baselines. Their defaults were chosen by a quick measurement, described here with its

@@ -13,6 +13,7 @@ from gymnasium import spaces
 from avq._validate import check_bool, check_int, check_int_or_ints, check_per_dimension, check_range
 from avq.agents import _fused, _model
 from avq.agents.grid import bin_coordinates
+from avq.agents._table import greedy_over_rows, observation_key
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
@@ -149,15 +150,13 @@ class PrioritizedSweeping(BaseAgent):
         self._ep_return = 0.0
 
     def _key(self, obs: Any) -> Any:
-        """The state's key: the observation (a tuple), its flat bin index with ``bins``, or a Discrete index."""
-        if self._discrete:
-            return int(obs)
+        """The state's key: its flat bin index with ``bins``, else the observation's (a Discrete index or a tuple)."""
+        if self.bins is None:
+            return observation_key(self.env.observation_space, obs)
         x = np.asarray(obs, dtype=np.float64)
         if x.shape != self.env.observation_space.shape:
             raise ValueError(f"observation has shape {x.shape}; the space says {self.env.observation_space.shape}")
-        if self.bins is not None:
-            return int(bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides)
-        return tuple(x.tolist())
+        return int(bin_coordinates(x, self._low, self._bins_per_unit, self._bins) @ self._strides)
 
     def _row(self, obs: Any, create: bool = True) -> int:
         key = self._key(obs)
@@ -237,18 +236,7 @@ class PrioritizedSweeping(BaseAgent):
 
     # -- queries ----------------------------------------------------------------------------
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
-        if self._discrete:
-            space = self.env.observation_space
-            bad = [o for o in obs if o != int(o) or not space.contains(int(o))]
-            if bad:
-                raise ValueError(f"observation {bad[0]!r} is not in the observation space {space}")
-        out = np.zeros(len(obs), dtype=np.int64)
-        Q = self._model.a.Q
-        for b, o in enumerate(obs):
-            row = self._row(o, create=False)
-            if row >= 0:
-                out[b] = int(Q[row].argmax())
-        return out
+        return greedy_over_rows(self.env.observation_space, obs, self._row, self._model.a.Q)
 
     def _obs_shape(self) -> tuple[int, ...]:
         return () if self._discrete else super()._obs_shape()

@@ -10,7 +10,7 @@ from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_sarsa_params
 from avq.agents import _fused
-from avq.agents._table import TableSarsa
+from avq.agents._table import TableSarsa, greedy_over_rows, observation_key
 
 __all__ = ["TabularSarsa"]
 
@@ -83,12 +83,7 @@ class TabularSarsa(TableSarsa):
         self._keys: list[Any] = []
 
     def _key(self, obs: Any) -> Any:
-        if self._discrete:
-            return int(obs)
-        x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self.env.observation_space.shape:
-            raise ValueError(f"observation has shape {x.shape}; the space says {self.env.observation_space.shape}")
-        return tuple(x.tolist())
+        return observation_key(self.env.observation_space, obs)
 
     def _row(self, obs: Any, create: bool = True) -> int:
         key = self._key(obs)
@@ -145,17 +140,7 @@ class TabularSarsa(TableSarsa):
         return run
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
-        if self._discrete:
-            space = self.env.observation_space
-            bad = [o for o in obs if o != int(o) or not space.contains(int(o))]
-            if bad:
-                raise ValueError(f"observation {bad[0]!r} is not in the observation space {space}")
-        out = np.zeros(len(obs), dtype=np.int64)
-        for b, o in enumerate(obs):
-            row = self._row(o, create=False)
-            if row >= 0:
-                out[b] = int(self._q[row].argmax())
-        return out
+        return greedy_over_rows(self.env.observation_space, obs, self._row, self._q)
 
     def _obs_shape(self) -> tuple[int, ...]:
         return () if self._discrete else super()._obs_shape()
