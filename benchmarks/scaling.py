@@ -133,6 +133,7 @@ def main() -> None:
     which.add_argument("--robot", action="store_true", help="RobotMaze with finer moves (see above)")
     ap.add_argument("--slip", type=float, default=0.0, help="slip probability of the grid mazes (default 0)")
     ap.add_argument("--quick", action="store_true", help="the two smallest sizes, 2 seeds")
+    ap.add_argument("--sizes", default=None, help="comma-separated sizes (sides, k or moves) instead of the family's")
     ap.add_argument("--seeds", type=int, default=None)
     ap.add_argument("--budget", type=int, default=None, help="env steps per run before giving up")
     ap.add_argument("--agents", default=None, help="comma-separated agents to run (default: all of the family)")
@@ -146,6 +147,8 @@ def main() -> None:
     if any(n not in fam["agents"] for n in names):
         ap.error(f"--agents: choose from {', '.join(fam['agents'])}")
     sizes = fam["quick"] if args.quick else fam["sizes"]
+    if args.sizes:
+        sizes = tuple(type(fam["sizes"][0])(v) for v in args.sizes.split(","))
     seeds = args.seeds or (2 if args.quick else fam["seeds"])
     budget = args.budget or fam["budget"]
     suffix = f"_slip{args.slip:g}" if args.slip else ""
