@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
 
-__all__ = ["borrowed", "nearest_index"]
+__all__ = ["borrowed", "nearest_index", "scaled_distance"]
 
 
 @intrinsic
@@ -33,6 +33,16 @@ def borrowed(typingctx, arr):
         return view._getvalue()
 
     return arr(arr), codegen
+
+
+@njit(cache=True, inline="always")
+def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray) -> float:
+    """Scaled distance between vector ``V[i]`` and the point ``x``."""
+    s = 0.0
+    for d in range(x.shape[0]):
+        z = (V[i, d] - x[d]) * inv_scale[d]
+        s += z * z
+    return np.sqrt(s)
 
 
 @njit(cache=True, nogil=True)

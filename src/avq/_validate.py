@@ -14,7 +14,8 @@ from typing import Any, Callable, TypeVar
 import numpy as np
 
 __all__ = ["check_range", "check_int", "check_bool", "check_choice", "check_int_or_ints", "check_per_dimension",
-           "check_optional", "check_sarsa_params"]
+           "check_optional", "check_sarsa_params",
+           "check_planning_params"]
 
 T = TypeVar("T")
 
@@ -104,3 +105,18 @@ def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: An
     agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
     agent.q_init = check_range("q_init", q_init, -np.inf, np.inf, low_open=True, high_open=True)
     agent.traces = check_choice("traces", traces, ("replacing", "accumulating"))
+
+
+def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_min: Any, known_after: Any,
+                          n_backups: Any, tol: Any) -> None:
+    """Check and store the hyper-parameters every planning agent shares."""
+    agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
+    agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
+    agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
+    agent.v_min = check_range("v_min", v_min, -np.inf, np.inf, low_open=True, high_open=True)
+    if agent.v_min > agent.v_opt:
+        raise ValueError(f"v_min ({agent.v_min}) must not exceed v_opt ({agent.v_opt}): v_min is the floor of every "
+                         "value, v_opt what an untried decision is worth")
+    agent.known_after = check_int("known_after", known_after, 1)
+    agent.n_backups = check_int("n_backups", n_backups, 0)
+    agent.tol = check_range("tol", tol, 0.0, np.inf, low_open=True, high_open=True)

@@ -34,7 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
-from avq._kernels import borrowed, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index, nearest_pairs_kernel
+from avq._kernels import (borrowed, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index,
+                          nearest_pairs_kernel, scaled_distance)
 from avq._random import DRAWS_PER_DECISION
 from avq.agents._td import clear_traces, epsilon_greedy, greedy_ties, sarsa_lambda, sarsa_td_error
 from avq.rules import APPEND as APPEND_OUTCOME
@@ -63,15 +64,6 @@ N_R = 7
 DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
 # Returned by observe() for an observation or reward that is NaN or infinite.
 NOT_FINITE = -2
-
-
-@njit(cache=True, inline="always")
-def scaled_distance(V: np.ndarray, i: int, x: np.ndarray, inv_scale: np.ndarray) -> float:
-    s = 0.0
-    for d in range(x.shape[0]):
-        z = (V[i, d] - x[d]) * inv_scale[d]
-        s += z * z
-    return np.sqrt(s)
 
 
 @njit(cache=True, inline="always")

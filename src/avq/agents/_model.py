@@ -130,8 +130,8 @@ class Model:
         cap_s, cap_e = a.cnt.shape[0], a.e_to.shape[0]
         if need_s <= cap_s and need_e <= cap_e:
             return
-        new = _empty(max(cap_s, need_s if need_s <= cap_s else max(need_s, 2 * cap_s)),
-                     self.m, max(cap_e, need_e if need_e <= cap_e else max(need_e, 2 * cap_e)), float(a.MP[V_OPT]))
+        grown = lambda need, cap: cap if need <= cap else max(need, 2 * cap)  # noqa: E731
+        new = _empty(grown(need_s, cap_s), self.m, grown(need_e, cap_e), float(a.MP[V_OPT]))
         for old, arr in zip(a, new):
             arr[: len(old)] = old
         self.a = new

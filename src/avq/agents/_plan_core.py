@@ -46,7 +46,7 @@ import math
 import numpy as np
 from numba import njit
 
-from avq._kernels import nearest_index
+from avq._kernels import nearest_index, scaled_distance
 from avq.agents import _model
 from avq.agents._model import FIRST, push, record, settled
 from avq.agents._td import epsilon_greedy
@@ -72,15 +72,6 @@ N_F = 5
 ENDED, NOT_FINITE = -1, -2
 #: Cells a step may append (a collision and a split).
 APPENDS_PER_STEP = 2
-
-
-@njit(cache=True, inline="always")
-def distance(V, i: int, x, inv_scale) -> float:
-    s = 0.0
-    for d in range(x.shape[0]):
-        z = (V[i, d] - x[d]) * inv_scale[d]
-        s += z * z
-    return np.sqrt(s)
 
 
 @njit(cache=True, inline="always")
@@ -230,7 +221,7 @@ def split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q
     if not np.sqrt(gap) > P[DMIN]:
         return -1
     for k in range(S[SIZE]):  # SPEC §3: no vector within d_min of another
-        if k != i and (distance(V, k, g1, inv_scale) <= P[DMIN] or distance(V, k, g2, inv_scale) <= P[DMIN]):
+        if k != i and (scaled_distance(V, k, g1, inv_scale) <= P[DMIN] or scaled_distance(V, k, g2, inv_scale) <= P[DMIN]):
             return -1
     for d in range(n):
         V[i, d] = g1[d]
@@ -389,7 +380,7 @@ def step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum,
     if collision and IP[COLLISION_GROWTH]:
         # SPEC §3's growth on a collision: append x unless it lies within d_min of the cell's vector
         # (or of another vector).
-        if collision_rule(distance(V, i, x, inv_scale), np.sqrt(d2), P[DMIN]) == APPEND:
+        if collision_rule(scaled_distance(V, i, x, inv_scale), np.sqrt(d2), P[DMIN]) == APPEND:
             if S[SIZE] < IP[MAX_CELLS]:
                 j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
                                 e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)

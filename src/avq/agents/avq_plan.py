@@ -8,12 +8,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import check_bool, check_int, check_optional, check_range
+from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
-from avq.agents.sweeping import check_planning_params
 from avq.quantizer import Codebook
 
 __all__ = ["PlanningAVQ"]
@@ -267,12 +266,9 @@ class PlanningAVQ(BaseAgent):
         if codebook.shape != (int(self._S[core.SIZE]), self._V.shape[1]):
             raise ValueError(f"array codebook has shape {codebook.shape}; expected "
                              f"({int(self._S[core.SIZE])}, {self._V.shape[1]})")
-        self._make_room()
-        while self._V.shape[0] < len(codebook) + core.APPENDS_PER_STEP:
-            self._V = np.concatenate([self._V, np.zeros_like(self._V)])
-        self._V[: len(codebook)] = codebook
         self._model.load_state_dict(arrays)
-        self._make_room()
+        self._make_room()  # (room for the loaded cells and edges)
+        self._V[: len(codebook)] = codebook
         e_xs = arrays["e_xs"]
         if e_xs.shape != (int(self._model.a.C[_model.N_EDGES]), self._xs.shape[0]):
             raise ValueError(f"array e_xs has shape {e_xs.shape}; expected "

@@ -30,6 +30,16 @@ def bin_coordinates(x: np.ndarray, low: np.ndarray, bins_per_unit: np.ndarray, b
     return np.clip(k, 0, bins - 1)
 
 
+def uniform_grid(space, obs_bounds, bins) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A uniform grid over the bounds of a 1-D ``Box`` space (``obs_bounds`` override them):
+    ``(low, high, bins per dimension, bins per unit, strides)``, the strides of the flat C-order index."""
+    low, high = resolve_bounds(space, obs_bounds)
+    n = low.shape[0]
+    per_dim = np.full(n, check_per_dimension("bins", bins, n), dtype=np.int64)
+    strides = np.array([math.prod(per_dim[d + 1:].tolist()) for d in range(n)], dtype=np.int64)
+    return low, high, per_dim, per_dim / (high - low), strides
+
+
 class GridSarsa(TableSarsa):
     """Sarsa(λ) on a fixed uniform discretization of a ``Box`` observation space.
 
@@ -83,17 +93,14 @@ class GridSarsa(TableSarsa):
         self.bins = check_int_or_ints("bins", bins)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-        n = self._low.shape[0]
-        self._bins = np.full(n, check_per_dimension("bins", self.bins, n), dtype=np.int64)
+        self._low, self._high, self._bins, self._bins_per_unit, self._strides = uniform_grid(
+            self.env.observation_space, self.obs_bounds, self.bins)
         self._n_bins = math.prod(self._bins.tolist())
         if self._n_bins > _MAX_BINS:
             raise ValueError(
                 f"bins gives {self._n_bins} cells, more than a preallocated table should hold ({_MAX_BINS}); "
                 "use fewer bins or the 'tiles' agent"
             )
-        self._bins_per_unit = self._bins / (self._high - self._low)
-        self._strides = np.array([math.prod(self._bins[d + 1:].tolist()) for d in range(n)], dtype=np.int64)
         self._low_list = self._low.tolist()
         self._per_dim = list(
             zip(self._low_list, self._bins_per_unit.tolist(), self._bins.tolist(), self._strides.tolist())

@@ -10,29 +10,14 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import check_bool, check_int, check_int_or_ints, check_per_dimension, check_range
+from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
 from avq.agents import _fused, _model
-from avq.agents.grid import bin_coordinates
+from avq.agents.grid import bin_coordinates, uniform_grid
 from avq.agents._table import greedy_over_rows, observation_key
-from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
+from avq.agents._spaces import check_box_discrete, normalize_obs_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
-__all__ = ["PrioritizedSweeping", "check_planning_params"]
-
-
-def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_min: Any, known_after: Any,
-                          n_backups: Any, tol: Any) -> None:
-    """Check and store the hyper-parameters every planning agent shares."""
-    agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
-    agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
-    agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
-    agent.v_min = check_range("v_min", v_min, -np.inf, np.inf, low_open=True, high_open=True)
-    if agent.v_min > agent.v_opt:
-        raise ValueError(f"v_min ({agent.v_min}) must not exceed v_opt ({agent.v_opt}): v_min is the floor of every "
-                         "value, v_opt what an untried decision is worth")
-    agent.known_after = check_int("known_after", known_after, 1)
-    agent.n_backups = check_int("n_backups", n_backups, 0)
-    agent.tol = check_range("tol", tol, 0.0, np.inf, low_open=True, high_open=True)
+__all__ = ["PrioritizedSweeping"]
 
 
 class PrioritizedSweeping(BaseAgent):
@@ -102,14 +87,11 @@ class PrioritizedSweeping(BaseAgent):
         self.fused = check_bool("fused", fused)
         super().__init__(env, seed)
         if self.bins is not None:
-            self._low, high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-            n = self._low.shape[0]
-            self._bins = np.full(n, check_per_dimension("bins", self.bins, n), dtype=np.int64)
+            self._low, _, self._bins, self._bins_per_unit, self._strides = uniform_grid(
+                self.env.observation_space, self.obs_bounds, self.bins)
             if math.prod(self._bins.tolist()) > 1 << 62:
-                raise ValueError(f"bins gives {math.prod(self._bins.tolist()):.3g} bins in {n} dimensions, more than a "
-                                 "bin index can hold; use fewer bins or avq-plan")
-            self._bins_per_unit = self._bins / (high - self._low)
-            self._strides = np.array([math.prod(self._bins[d + 1:].tolist()) for d in range(n)], dtype=np.int64)
+                raise ValueError(f"bins gives {math.prod(self._bins.tolist()):.3g} bins in {len(self._bins)} dimensions, "
+                                 "more than a bin index can hold; use fewer bins or avq-plan")
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         if not isinstance(act_space, spaces.Discrete):
