@@ -234,8 +234,23 @@ def test_saved_files_have_ordinary_permissions(tmp_path):
 
 def test_load_names_a_space_mismatch_before_anything_else(tmp_path):
     path = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=1).save(tmp_path / "m.zip")
-    with pytest.raises(ValueError, match="saved for observation_space"):
+    with pytest.raises(ValueError, match="whose observation_space is Box"):
         avq.load(path, env=gym.make("CartPole-v1"))
+
+
+def test_evaluate_maze_refuses_an_agent_trained_on_another_layout_as_load_does(tmp_path):
+    agent = make_agent("avq-paper", maze(), seed=0).learn(total_episodes=5)
+    with pytest.raises(ValueError) as evaluating:
+        evaluate_maze(agent, maze("open5"))
+    with pytest.raises(ValueError) as loading:
+        avq.load(agent.save(tmp_path / "m.zip"), env=maze("open5"))
+    told = ("the agent was trained on avq/GridMaze-v0 with layout='lau2002', max_episode_steps=100, whose "
+            "observation_space is Box(low=[0.0, 0.0], high=[13.0, 11.0]), but env's is Box(low=[0.0, 0.0], "
+            "high=[4.0, 4.0]); pass an environment made like the one it was trained on (the same id and "
+            "gymnasium.make arguments: on a maze, the same layout)")
+    assert str(evaluating.value) == f"evaluate_maze: {told}"
+    assert str(loading.value) == f"{tmp_path / 'm.zip'}: {told}"
+    assert evaluate_maze(agent, maze())["success_rate"] >= 0.0  # its own layout is accepted
 
 
 @pytest.mark.parametrize("name", ["avq", "tabular", "grid", "tiles"])

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from avq.agents.base import BaseAgent
+from avq.agents.save_util import check_env_fits, env_signature
 from avq.envs.grid_maze import GridMaze, grid_move
 from avq.envs.robot_maze import RobotDynamics, RobotMaze, robot_move, sonar_ranges
 
@@ -91,7 +92,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
 
     The greedy policy is the agent's own decision rule with exploration off: for
     AVQ agents the best action of the current cell, repeated while the cell stays
-    the same (SPEC §2), which is the same as asking :meth:`predict` with
+    the same (SPEC §2), which is the same as asking :meth:`avq.agents.BaseAgent.predict` with
     ``deterministic=True`` at every step because a frozen cell's best action does
     not change.
 
@@ -109,6 +110,11 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         limit; ``path_ratio``: mean over successful starts of greedy steps divided by
         shortest-path steps (None when no start succeeds); ``outcomes``: one dict per
         start with ``start``, ``success``, ``steps`` and ``shortest``.
+
+    Raises:
+        ValueError: ``env`` is not a maze, or its spaces are not those the agent was trained on
+            (a layout of another size, say): the rule of :func:`avq.load`, in
+            :func:`avq.agents.save_util.check_env_fits`.
     """
     base = env.unwrapped
     layout = getattr(base, "layout", None)
@@ -116,6 +122,8 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         raise ValueError(
             "evaluate_maze needs a maze environment (avq/GridMaze-v0 or avq/RobotMaze-v0); this one has no layout"
         )
+    if isinstance(agent, BaseAgent):  # (any object with avq's predict() may be walked; only agents know their env)
+        check_env_fits(env_signature(agent.env), env, "evaluate_maze")
     if hasattr(base, "start_positions"):  # continuous maze: square centres, exact lattice distances
         starts = [tuple(float(v) for v in p) for p in base.start_positions()]
         shortest = [int(base.shortest_steps(x, y)) for x, y in starts]

@@ -9,8 +9,9 @@ A model file is a zip of two members, written atomically and never pickled:
 - ``arrays.npz``: the learned arrays and the episode history, numbers only.
 
 Kept apart from the agents (as Stable-Baselines3 keeps ``common/save_util.py``). It
-imports no agent: the classes it can build are in :data:`AGENT_CLASSES`, which every
-subclass of ``BaseAgent`` joins when it is defined; ``BaseAgent.save``/``load`` call it.
+imports no agent: the classes it can build are in a table, ``AGENT_CLASSES``, which every
+subclass of `avq.agents.BaseAgent` joins when it is defined; `avq.agents.BaseAgent.save` and
+`avq.agents.BaseAgent.load` call it.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ if TYPE_CHECKING:
 #: Every agent class by name (filled by ``BaseAgent.__init_subclass__``): a model file names its class.
 AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
 
-__all__ = ["FORMAT_VERSION", "save", "load"]
+__all__ = ["FORMAT_VERSION", "save", "load", "env_signature", "check_env_fits"]
 
 FORMAT_VERSION = 2
 #: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
@@ -70,6 +71,65 @@ def _space_to_json(space: spaces.Space) -> dict[str, Any]:
     return {"type": type(space).__name__}
 
 
+def _describe_space(space: dict[str, Any] | None) -> str:
+    """A space as :func:`_space_to_json` gives it, in a line: ``Box(low=[0.0, 0.0], high=[13.0, 11.0])``."""
+    if not space:
+        return "none recorded"
+    if space.get("type") == "Discrete":
+        return f"Discrete({space['n']})" if space.get("start", 0) == 0 else f"Discrete({space['n']}, start={space['start']})"
+    if space.get("type") == "Box":
+        return f"Box(low={space['low']}, high={space['high']})"
+    return str(space.get("type"))
+
+
+def env_signature(env: gym.Env) -> dict[str, Any]:
+    """What a model records of the environment it was trained on, as JSON values.
+
+    Returns:
+        ``observation_space`` and ``action_space`` (each a dict: type, shape, bounds), ``env_id``
+        (None when ``env`` was not made by ``gymnasium.make``) and ``env_make`` (the ``gymnasium.make``
+        arguments that rebuild it, or None).
+    """
+    return {
+        "observation_space": _space_to_json(env.observation_space),
+        "action_space": _space_to_json(env.action_space),
+        "env_id": getattr(getattr(env, "spec", None), "id", None),
+        "env_make": _env_make_args(env),
+    }
+
+
+def check_env_fits(trained: dict[str, Any], env: gym.Env, subject: str) -> None:
+    """Refuse ``env`` for an agent trained on an environment with other spaces.
+
+    The rule of :func:`load` (with ``env=``) and of :func:`avq.evaluate_maze`: an agent acts
+    only in an environment whose observation and action spaces are those it was trained on.
+    On the mazes the observation bounds are the layout's size, so a layout of another size
+    is refused.
+
+    Args:
+        trained: What the agent was trained on: :func:`env_signature` of its environment, or a
+            model file's header (which holds the same keys).
+        env: The environment offered.
+        subject: Who refuses, the start of the message (a model file's path, a function's name).
+
+    Raises:
+        ValueError: naming the space that differs, both versions of it, the environment the agent was
+            trained on, and what to pass instead.
+    """
+    for key in ("observation_space", "action_space"):
+        want, have = trained.get(key), _space_to_json(getattr(env, key))
+        if want != have:
+            origin = trained.get("env_id") or "an environment without a registered id"
+            make = trained.get("env_make") or {}
+            if make:
+                origin += " with " + ", ".join(f"{k}={v!r}" for k, v in make.items())
+            raise ValueError(
+                f"{subject}: the agent was trained on {origin}, whose {key} is {_describe_space(want)}, but env's is "
+                f"{_describe_space(have)}; pass an environment made like the one it was trained on (the same id and "
+                "gymnasium.make arguments: on a maze, the same layout)"
+            )
+
+
 def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
     """Write ``agent`` to a model file at ``path`` (``.zip`` appended when it has no suffix); return the path."""
     path = Path(path)
@@ -84,10 +144,7 @@ def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
         "avq_version": __version__,
         "class": type(agent).__name__,
         "params": agent.get_params(),
-        "observation_space": _space_to_json(agent.env.observation_space),
-        "action_space": _space_to_json(agent.env.action_space),
-        "env_id": getattr(getattr(agent.env, "spec", None), "id", None),
-        "env_make": _env_make_args(agent.env),
+        **env_signature(agent.env),
         "state": state,
     }
     buf = io.BytesIO()
@@ -165,11 +222,7 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
             raise ValueError(f"{path}: {exc}; pass env= to load it") from None
     params = dict(meta["params"])
     env = as_env(env)
-    for key in ("observation_space", "action_space"):
-        want = meta.get(key)
-        have = _space_to_json(getattr(env, key))
-        if want != have:
-            raise ValueError(f"{path}: the model was saved for {key} {want}, but env has {have}")
+    check_env_fits(meta, env, str(path))
     try:
         agent = cls(env, **params)
     except (TypeError, ValueError) as exc:
