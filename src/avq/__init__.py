@@ -6,9 +6,10 @@ Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/R
 
 from avq._version import __version__
 from avq import envs  # noqa: F401  (registers the environments)
-from avq.agents import (AGENTS, AVQSarsa, BaseAgent, GridSarsa, PlanningAVQ, PrioritizedSweeping, TabularSarsa, TileSarsa, load,
-                        make_agent)
+from avq.agents import (AGENTS, ActionCodebookSarsa, AVQSarsa, BaseAgent, GridSarsa, PlanningAVQ, PrioritizedSweeping, TabularSarsa,
+                        TileSarsa, load, make_agent)
 from avq.evaluation import evaluate_maze
+from avq import checks  # noqa: F401  (avq.checks.check_agent, the conformance checker, after ``import avq``)
 from avq.quantizer import Codebook
 
 # Imported here, not lazily through a module-level __getattr__ (PEP 562): ``avq.sweep`` names both this
@@ -27,6 +28,7 @@ __all__ = [
     "PrioritizedSweeping",
     "GridSarsa",
     "TileSarsa",
+    "ActionCodebookSarsa",
     "BaseAgent",
     "Codebook",
     "AGENTS",
@@ -35,4 +37,7 @@ __all__ = [
     "evaluate_maze",
     "sweep",
     "__version__",
+    "agents",
+    "envs",
+    "checks",
 ]
