@@ -1,5 +1,11 @@
-"""avq's agents and the registry of agent names."""
+"""avq's agents and the registry of agent names.
 
+The agents by name, with their rules and defaults: `avq.agents.registry`. The model file that
+`avq.agents.BaseAgent.save` writes: `avq.agents.save_util`.
+"""
+
+from avq.agents import registry, save_util  # noqa: F401  (public: the names and defaults, the model file)
+from avq.agents.actions import ActionCodebookSarsa
 from avq.agents.avq_plan import PlanningAVQ
 from avq.agents.avq_sarsa import AVQSarsa
 from avq.agents.base import BaseAgent
@@ -10,4 +16,5 @@ from avq.agents.sweeping import PrioritizedSweeping
 from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
-__all__ = ["AVQSarsa", "PlanningAVQ", "TabularSarsa", "PrioritizedSweeping", "GridSarsa", "TileSarsa", "BaseAgent", "AGENTS", "make_agent", "load"]
+__all__ = ["AVQSarsa", "PlanningAVQ", "TabularSarsa", "PrioritizedSweeping", "GridSarsa", "TileSarsa", "ActionCodebookSarsa",
+           "BaseAgent", "AGENTS", "make_agent", "load", "registry", "save_util"]

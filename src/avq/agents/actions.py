@@ -152,13 +152,13 @@ def merged_vector(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class ActionCodebookSarsa(BaseAgent):
     """Linear Sarsa(λ) on tile-coded states over an adaptive codebook of continuous actions.
 
-    The learner is :class:`~avq.agents.tiles.TileSarsa`'s: ``Q(s, a) = sum_i w[i, a]``
+    The learner is :class:`avq.agents.TileSarsa`'s: ``Q(s, a) = sum_i w[i, a]``
     over the active tiles of ``s``, Sarsa(λ) with traces on the features, one
     ε-greedy decision per primitive step. Its discrete actions are the vectors of
     an action codebook: at the start a uniform grid of ``init_actions`` values per
     action dimension (low to high); with ``fixed=False``, every ``adapt_every``
-    episodes a merge pass and then one growth step (module docstring;
-    :func:`plan_merges`, :func:`plan_growth`, :func:`merged_vector`), judged on the
+    episodes a merge pass and then one growth step (the rules: ``plan_merges``, ``plan_growth``
+    and ``merged_vector`` in src/avq/agents/actions.py, described in its docstring), judged on the
     last ``memory`` visited states. With ``fixed=True`` the grid stays: the uniform
     discretization with the same learner.
 
@@ -373,7 +373,7 @@ class ActionCodebookSarsa(BaseAgent):
         return self._w.take(states, axis=0)[:, :, : self._n].sum(axis=1)
 
     def grow_step(self) -> int:
-        """Insert one action vector where :func:`plan_growth` says; 1 if one was inserted, else 0."""
+        """Insert one action vector where ``plan_growth`` says; 1 if one was inserted, else 0."""
         if self._n >= self._slots:
             return 0
         plan = plan_growth(self._units[: self._n], self._remembered_values(), self.d_min)
@@ -389,9 +389,9 @@ class ActionCodebookSarsa(BaseAgent):
         return 1
 
     def merge_pass(self) -> int:
-        """Merge the pairs :func:`plan_merges` finds; return how many merged.
+        """Merge the pairs ``plan_merges`` finds; return how many merged.
 
-        The merged action takes the lower slot, its vector from :func:`merged_vector`
+        The merged action takes the lower slot, its vector from ``merged_vector``
         and its weights the mean of the pair's; the slots above the removed one move
         down in order, and the freed columns return to their initial weights.
         """

@@ -25,10 +25,10 @@ class PlanningAVQ(BaseAgent):
     changes, a collision, or the end of the episode (SPEC §2). Each such aggregate transition is
     recorded in a model of the cells (successor counts, mean return and discount, so one
     decision is an SMDP step), and the values are planned from the model by prioritized sweeping
-    with ``n_backups`` backups per transition (:mod:`avq.agents._model`). Pairs of a cell and an
+    with ``n_backups`` backups per transition (src/avq/agents/_model.py). Pairs of a cell and an
     action tried fewer than ``known_after`` times are worth ``v_opt``, so the agent tries each
     decision of each cell: it explores coarse to fine. Cells grow by the paper's collision rule
-    and where a decision's outcome disagrees with the model (:mod:`avq.agents._plan_core`).
+    and where a decision's outcome disagrees with the model (src/avq/agents/_plan_core.py).
 
     Args:
         env: A Gymnasium environment (or registered id) with a ``Box`` observation space and
@@ -40,7 +40,7 @@ class PlanningAVQ(BaseAgent):
             vector, append the observation (SPEC §3).
         outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by
             more than ``split_threshold`` beyond what the distance between their starts explains
-            (:mod:`avq.agents._plan_core`).
+            (src/avq/agents/_plan_core.py).
         split_threshold: That excess, > 0.
         cycle_split: When two decisions lead from a cell to another and straight back, give the square
             of the return a cell of its own (as ``AVQSarsa``'s ``cycle_split``).

@@ -57,7 +57,7 @@ class AVQSarsa(BaseAgent):
         explore_bonus: Beyond the paper: count-based exploration. The greedy part of ε-greedy
             (while learning) decides on ``Q[i, a] + explore_bonus / sqrt(1 + n[i, a])``, with
             ``n[i, a]`` the decisions taken with ``a`` in cell ``i`` (summed when cells merge,
-            0 for a new cell); 0 (the paper): on ``Q`` alone. ``predict`` always uses ``Q``.
+            0 for a new cell); 0 (the paper): on ``Q`` alone. ``BaseAgent.predict`` always uses ``Q``.
         collision_split: Beyond the paper: on a collision within ``d_min`` of the
             cell's own vector, where the paper sets ``Q[i, a] = chi`` for the whole
             cell, split instead when ``a`` is the cell's greedy action and ``x`` is not
@@ -107,7 +107,7 @@ class AVQSarsa(BaseAgent):
             made by ``gymnasium.make``, with its standard wrappers), run the maze's
             dynamics and the agent in one compiled loop.
             Same results as stepping the environment from Python, much faster; the
-            environment object is brought up to date after every ``learn`` call.
+            environment object is brought up to date after every ``BaseAgent.learn`` call.
             False always steps the environment from Python.
         seed: Seed of every random choice the agent makes and of the environment's
             first reset.
@@ -119,7 +119,7 @@ class AVQSarsa(BaseAgent):
     and measured, are in one table, :data:`avq.agents.registry.DEFAULTS`.
 
     Attributes:
-        scale_: ``(n,)`` the metric's scale in force (``scale`` resolved; ``get_params()``
+        scale_: ``(n,)`` the metric's scale in force (``scale`` resolved; ``BaseAgent.get_params()``
             keeps ``scale`` as given, None included).
         codebook_: ``(p, n)`` codebook vectors.
         q_: ``(p, m)`` action values of the cells.

@@ -20,6 +20,7 @@ chosen"; the raw results are in docs/data/sweep-paper-defaults.csv).
 
 from __future__ import annotations
 
+import inspect
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -33,8 +34,8 @@ from avq.agents.sweeping import PrioritizedSweeping
 from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
-__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "TASK_DEFAULTS", "agent_defaults", "defaults_key",
-           "make_agent"]
+__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "SUMMARIES", "TASK_DEFAULTS", "agent_defaults",
+           "defaults_key", "make_agent"]
 
 #: name -> the agent's class.
 CLASSES: dict[str, type[BaseAgent]] = {
@@ -167,7 +168,43 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 
-#: name -> (class, its ``"*"`` defaults): a view of :data:`DEFAULTS`.
+#: name -> what the agent is: its class's rules as this name sets them (the reference's section per agent).
+SUMMARIES: dict[str, str] = {
+    "avq-paper": "AVQ with the paper's rules exactly: cells grow only on collisions (SPEC §3), the plain Euclidean "
+                 "metric (`scale` 1: `d_min` in the environment's units), and a merge pass of mutually nearest cells "
+                 "with similar action values after every trial (SPEC §4). On a task that reports no collisions it keeps "
+                 "one cell: use `avq` there.",
+    "avq": "AVQ, our best settings. On `avq/GridMaze-v0`: the rules of `avq-maze`, plus a split where two greedy "
+           "decisions cycle between two cells (`cycle_split`) and a decaying exploration rate (`epsilon_decay`); on "
+           "`avq/RobotMaze-v0`: `avq-maze` without its budget of cells. Elsewhere: growth on collisions when the task "
+           "reports them and where an action value changes by more than `value_trigger`, a merge-age guard "
+           "(`merge_age`), and the metric scaled by the observation bounds (`scale` None; `obs_bounds=` for unbounded "
+           "dimensions).",
+    "avq-maze": "AVQ beyond the paper, for tasks that report collisions: the paper's rules, plus a split where a cell's "
+                "greedy action hits a wall (`collision_split`), merging of nearest pairs (`merge_pairs`), and a budget "
+                "of cells (`max_cells`).",
+    "tabular": "Sarsa(λ) with one table row per distinct observation, one decision per step: full resolution on the "
+               "grid maze; on continuous observations it makes a row for every observation and cannot generalize.",
+    "grid": "Sarsa(λ) on a fixed uniform discretization (`bins` per dimension): the fixed-resolution baseline.",
+    "tiles": "Linear Sarsa(λ) with tile coding like Sutton's `tiles3` (`n_tilings` tilings, hashing into `iht_size` "
+             "weights).",
+    "tabular-ps": "Model-based: one state per distinct observation, a learned model (successor counts, mean rewards), "
+                  "optimism for untried pairs (R-max's `v_opt`) and prioritized sweeping with `n_backups` backups per "
+                  "step (Moore & Atkeson 1993). The strong baseline on the mazes.",
+    "grid-ps": "The planner of `tabular-ps` on a fixed uniform grid (`bins` per dimension): full resolution with a "
+               "model on continuous mazes.",
+    "avq-plan": "AVQ's cells and decisions (one per cell, repeated until the cell changes) with a learned model of the "
+                "cells (one decision an SMDP step), the planner of `tabular-ps`, and cells split where a decision's "
+                "outcomes disagree beyond what distance explains (`outcome_split`, `split_threshold`).",
+    "avq-actions": "For continuous (`Box`) actions: the learner of `tiles` over an adaptive codebook of actions, from "
+                   "`init_actions` values per action dimension, that grows (a midpoint next to the most used action) "
+                   "and merges (similar value columns) every `adapt_every` episodes.",
+    "uniform-actions": "The learner of `avq-actions` on a fixed uniform grid of `init_actions` actions per dimension "
+                       "(`fixed`): the baseline for `avq-actions`.",
+}
+
+
+#: name -> (class, its ``"*"`` defaults): a view of :data:`avq.agents.registry.DEFAULTS`.
 AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {name: (CLASSES[name], table["*"])
                                                              for name, table in DEFAULTS.items()}
 #: name -> {environment id -> defaults} for the names with per-environment entries: a view of :data:`DEFAULTS`.
@@ -189,7 +226,7 @@ class DefaultsUsed(NamedTuple):
     #: The entry of ``DEFAULTS[name]`` used: ``"*"`` or an environment id.
     key: str
     #: The parameters given explicitly, which won over the entry.
-    explicit: dict[str, Any]
+    explicit: dict[str, object]
 
     def __str__(self) -> str:
         which = "the general defaults" if self.key == "*" else f"the {self.key} defaults"
@@ -229,11 +266,21 @@ def _env_id(env: gym.Env | str) -> str | None:
 def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrides: Any) -> BaseAgent:
     """Create the agent registered as ``name`` with its defaults, updated by ``overrides``.
 
-    Some agents have defaults of their own on some environments (:data:`DEFAULTS`): ``avq`` on
+    The names, with each one's rules and defaults, are listed in `avq.agents.registry`. Some agents have
+    defaults of their own on some environments (:data:`avq.agents.registry.DEFAULTS`): ``avq`` on
     ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` uses the collision-driven maze rules. The
     environment is recognised by its registered id (``env.spec.id``, or the id registered for its class
     when it was built without ``gymnasium.make``). The agent's ``defaults_used`` says which entry
     was used and which parameters were explicit.
+
+    Args:
+        name: A registered name, such as ``"avq-paper"``, ``"avq"`` or ``"tabular"``.
+        env: A Gymnasium environment, or a registered id to make one.
+        seed: The seed of the agent's generators (None: fresh entropy).
+        overrides: Parameters of the agent's class, which win over the defaults.
+
+    Returns:
+        The agent, not yet trained.
 
     Raises:
         ValueError: unknown name, or an override that is not a parameter of the agent.
@@ -257,3 +304,28 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     agent = cls(env, **{**DEFAULTS[name][key], **overrides, "seed": seed})
     agent.defaults_used = DefaultsUsed(name, env_id, key, dict(overrides))
     return agent
+
+
+def _reference() -> str:
+    """The section of the API reference on the agents by name: each name's class, summary and defaults, read from
+    :data:`CLASSES`, :data:`SUMMARIES` and :data:`DEFAULTS` (a parameter an entry leaves out shows the class's own
+    default)."""
+    parts = ["\n\n## The agents by name\n\nEach name's class, what it is, and its defaults: a column per entry of "
+             "`avq.agents.registry.DEFAULTS`; a value the entry leaves out is the class's own default, marked "
+             "*(class)*. Explicit parameters given to `avq.agents.registry.make_agent` win."]
+    for name, table in DEFAULTS.items():
+        cls = CLASSES[name]
+        signature = inspect.signature(cls.__init__).parameters
+        rows = list(dict.fromkeys(key for entry in table.values() for key in entry))
+        head = " | ".join(f"`{key}`" if key != "*" else "everywhere (`\"*\"`)" for key in table)
+        lines = [f"| parameter | {head} |", "|---|" + "---|" * len(table)]
+        for param in rows:
+            cells = [f"`{entry[param]!r}`" if param in entry else f"`{signature[param].default!r}` *(class)*"
+                     for entry in table.values()]
+            lines.append(f"| `{param}` | " + " | ".join(cells) + " |")
+        parts.append(f"### {name}\n\n{SUMMARIES[name]}\n\nClass: `avq.agents.{cls.__name__}`.\n\n" + "\n".join(lines))
+    return "\n\n".join(parts) + "\n"
+
+
+if __doc__:  # (None under python -OO)
+    __doc__ += _reference()

@@ -24,7 +24,7 @@ class PrioritizedSweeping(BaseAgent):
     """Model-based RL: a learned model of every (observation, action) pair and prioritized sweeping over it.
 
     Each distinct observation is a state (as in ``tabular``). The model counts, for each pair, its
-    successors and the mean reward (:mod:`avq.agents._model`), so it is right for stochastic tasks.
+    successors and the mean reward (src/avq/agents/_model.py), so it is right for stochastic tasks.
     A pair tried fewer than ``known_after`` times is worth ``v_opt`` (optimism, as in R-max: the agent
     goes to try it). After every step the pair's state is backed up from the model and at most
     ``n_backups`` more states, those whose values the change moves most, are backed up; the queue

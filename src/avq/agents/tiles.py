@@ -69,7 +69,7 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
 class TileSarsa(BaseAgent):
     """Linear Sarsa(λ) on tile-coded features, like Sutton & Barto's Mountain Car agent.
 
-    The observation is tile-coded by :class:`avq.tilecoding.TileCoder` (``n_tilings``
+    The observation is tile-coded by a ``TileCoder`` (src/avq/tilecoding.py; ``n_tilings``
     tilings of ``tiles_per_dim`` tiles per dimension, displaced asymmetrically as in
     Sutton's ``tiles3``, indices from an index hash table of ``iht_size``). The value
     of an action is the sum of its weights over the active tiles,
@@ -97,7 +97,7 @@ class TileSarsa(BaseAgent):
 
     Attributes:
         weights_: ``(iht_size, m)`` weights.
-        tile_coder_: The :class:`~avq.tilecoding.TileCoder` with its index hash table.
+        tile_coder_: The ``TileCoder`` (src/avq/tilecoding.py) with its index hash table.
         n_cells: Tiles in use in the index hash table.
 
     Episode records count, in ``appends``, the tiles first met in the episode and,

@@ -172,12 +172,14 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
             fixed_start=tuple(int(v) for v in self.layout.start) if start == "fixed" else None,
             slip=float(slip),
         )
-        """The maze's dynamics as frozen data (:class:`GridDynamics`), for compiled loops."""
+        """The maze's dynamics as frozen data (a ``GridDynamics``, src/avq/envs/grid_maze.py), for compiled loops."""
 
     # -- Gymnasium API -------------------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: at ``options["start"]``, a free non-goal ``(x, y)``, when given; else as ``start``
+        says. A ``seed`` seeds ``self.np_random`` first (Gymnasium's rule). Returns the observation and the info."""
         super().reset(seed=seed)
         start = None if options is None else options.get("start")
         if start is not None:
@@ -190,6 +192,11 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), self._info(False)
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Move one square towards ``action`` (0 North, 1 East, 2 South, 3 West; sideways with probability ``slip``).
+
+        Returns ``(observation, reward, terminated, truncated, info)`` as the class describes; ``truncated`` is
+        always False here: the ``TimeLimit`` of ``avq/GridMaze-v0`` truncates.
+        """
         a = action_index(action)
         if self.dynamics.slip > 0.0:  # (the compiled rule run by Python: a Generator is slow to hand to Numba)
             a = slipped.py_func(self.np_random, a, self.dynamics.slip)
@@ -198,6 +205,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), reward, terminated, False, self._info(collision)
 
     def render(self) -> str | np.ndarray | None:
+        """The maze and the robot: text with ``render_mode="ansi"``, an RGB array with ``"rgb_array"``, else None."""
         if self.render_mode == "ansi":
             return self._render_text()
         if self.render_mode == "rgb_array":

@@ -449,12 +449,15 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
             sonar_range=sonar_range, sonar_noise=sonar_noise, observe_sonar=observe_sonar,
             max_steps=int(max_steps),
         )
-        """The maze's dynamics as frozen data (:class:`RobotDynamics`), for compiled loops."""
+        """The maze's dynamics as frozen data (a ``RobotDynamics``, src/avq/envs/robot_maze.py), for compiled loops."""
 
     # -- Gymnasium API -------------------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: at ``options["start"]``, an ``(x, y)`` where the disc fits, when given; else as
+        ``start`` says. A ``seed`` seeds ``self.np_random`` first (Gymnasium's rule). Returns the observation and
+        the info."""
         super().reset(seed=seed)
         start = None if options is None else options.get("start")
         if start is not None:
@@ -469,6 +472,11 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), self._info(False)
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Move ``move`` towards ``action`` (0 North, 1 East, 2 South, 3 West), unless the disc would collide.
+
+        Returns ``(observation, reward, terminated, truncated, info)`` as the class describes; ``truncated``
+        after ``max_steps`` steps.
+        """
         a = action_index(action)
         self._steps += 1
         self._x, self._y, reward, terminated, collision = robot_move(
@@ -478,6 +486,7 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         return self._obs(), reward, terminated, truncated, self._info(collision)
 
     def render(self) -> str | np.ndarray | None:
+        """The maze and the robot: text with ``render_mode="ansi"``, an RGB array with ``"rgb_array"``, else None."""
         if self.render_mode == "ansi":
             return self._render_text()
         if self.render_mode == "rgb_array":

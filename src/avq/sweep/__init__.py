@@ -46,7 +46,7 @@ def sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | o
     """Run every trial of a sweep that has not finished yet; write ``results.csv`` and ``curves.png``.
 
     Args:
-        config: A YAML file, a dict with the same keys, or a :class:`SweepConfig`.
+        config: A YAML file, a dict with the same keys, or a :class:`avq.sweep.SweepConfig`.
         out: The sweep's directory (created). Finished trials found there are skipped.
         backend: ``local`` (joblib processes), ``ray`` or ``dask``.
         address: The cluster to use (``ray``: as for ``ray.init``; ``dask``: the scheduler's address).
