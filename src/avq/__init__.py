@@ -2,6 +2,13 @@
 
 Sarsa(λ) on a growing and merging set of Voronoi cells (Lau, Mak & Lee, 2002).
 Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``).
+
+- Agents: `avq.make_agent` makes one by name (the names, their rules and their defaults:
+  `avq.agents.registry`); the classes are here and in `avq.agents`; `avq.load` reads a saved one.
+- Environments and maze layouts: `avq.envs`.
+- Evaluation: `avq.evaluate_maze`, the greedy policy from every start of a maze.
+- Sweeps of configurations and seeds, locally or on Ray or Dask: `avq.sweep`.
+- The checks every agent passes: `avq.checks`.
 """
 
 from avq._version import __version__

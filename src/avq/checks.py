@@ -1,7 +1,9 @@
 """A conformance check for agents, in the spirit of scikit-learn's ``check_estimator``.
 
-``check_agent("tabular")`` runs every check below on a freshly made agent and
-raises an ``AssertionError`` naming the first one that fails::
+``check_agent("tabular")`` runs every check of :data:`CHECKS` (parameter validation,
+same seed same result, additive ``learn``, side-effect-free ``predict``, an exact
+save/load round trip) on freshly made agents and raises an ``AssertionError`` naming
+the first one that fails::
 
     from avq.checks import check_agent
     check_agent("avq", env_id="MountainCar-v0")

@@ -54,10 +54,12 @@ def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any
 
 
 class BaseAgent:
-    """Base class of avq's agents (see :class:`avq.AVQSarsa` for the full API).
+    """Base class of avq's agents: what every agent shares (:meth:`learn`, :meth:`predict`,
+    :meth:`save`, :meth:`load`, :meth:`get_params`, :meth:`episode_history`).
 
     Construction stores and checks hyper-parameters only. Learned state lives in
-    attributes ending in ``_`` and is created on the first :meth:`learn`.
+    attributes ending in ``_`` and is created on the first :meth:`learn`. Each agent's
+    own parameters and rules are in its class's docstring (`avq.agents.AVQSarsa`, ...).
     """
 
     #: Registry of learned arrays saved by :meth:`save` (name -> attribute).

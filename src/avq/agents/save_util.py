@@ -194,13 +194,18 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
     """Load any avq agent saved with ``agent.save(path)``.
 
     Args:
-        path: The saved file.
-        env: The environment to attach. Without one, the environment is made from
-            the id stored in the file (which must be registered).
+        path: The saved file (``.zip`` is tried when the path has no suffix).
+        env: The environment to attach (or a registered id). Without one, the environment is
+            made from the id and ``gymnasium.make`` arguments stored in the file.
+
+    Returns:
+        The agent as it was saved, with its generators: learning on continues as the
+        uninterrupted run would have (when it was saved between episodes).
 
     Raises:
-        ValueError: the file is not an avq model, is damaged, or its spaces do not
-            match ``env``'s.
+        FileNotFoundError: no file at ``path``.
+        ValueError: the file is not an avq model or is damaged, or ``env``'s spaces are not
+            those the agent was trained on (:func:`avq.agents.save_util.check_env_fits`).
     """
     path = Path(path)
     if not path.exists() and path.suffix == "" and path.with_suffix(".zip").exists():
