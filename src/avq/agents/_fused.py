@@ -267,6 +267,15 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
             episodes += 1
 
 
+@njit(cache=True, inline="always")
+def _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
+                    prio, C, MP):
+    """The model's arrays (:class:`avq.agents._model.ModelArrays`) as borrowed views, for a fused loop."""
+    return (borrowed(cnt), borrowed(rsum), borrowed(head), borrowed(Q), borrowed(Vm), borrowed(e_to), borrowed(e_next),
+            borrowed(e_n), borrowed(e_disc), borrowed(e_r), borrowed(p_head), borrowed(p_sa), borrowed(p_edge),
+            borrowed(p_next), borrowed(heap), borrowed(hpos), borrowed(prio), borrowed(C), borrowed(MP))
+
+
 @njit(cache=True)
 def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
                   e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, env_rng,
@@ -276,6 +285,13 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
     ``PlanningAVQ`` does stepping the environment. On GridMaze the nearest cell of every square is kept
     while the codebook does not change. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
     arrays may not hold what the next step adds."""
+    (V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs) = (
+        borrowed(V), borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F), borrowed(xs),
+        borrowed(mem_x), borrowed(mem_i), borrowed(mem_f), borrowed(e_xs))
+    (cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
+     MP) = _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+                           hpos, prio, C, MP)
+    walls, starts, dirs, pos, rec = borrowed(walls), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     x = np.empty(V.shape[1])
@@ -313,9 +329,11 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
             if cell_cache[iy, ix] < 0:
                 cell_cache[iy, ix], dist_cache[iy, ix] = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
             j, d2 = cell_cache[iy, ix], dist_cache[iy, ix]
-        a = plan_core.step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
-                              e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x,
-                              r, collision, terminated, truncated, j, d2)
+        if plan_core.goes_on(P, S, F, r, j, collision, terminated or truncated):
+            continue
+        a = plan_core.end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm,
+                                     e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
+                                     MP, rng, x, collision, terminated, truncated, j, d2)
         if a == plan_core.ENDED:
             plan_core.end_record(S, F, rec[episodes])
             episodes += 1
@@ -331,6 +349,11 @@ def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_h
     environment. ``T``: current row, current action, episode steps, rows added this episode, in-episode
     flag; ``TF[0]``: episode return. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
     model may not hold a new state and a new edge."""
+    (cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
+     MP) = _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
+                           hpos, prio, C, MP)
+    row_of, keys, T, TF = borrowed(row_of), borrowed(keys), borrowed(T), borrowed(TF)
+    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     while True:

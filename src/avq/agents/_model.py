@@ -285,7 +285,7 @@ def propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, 
         k = p_next[k]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
           budget: int) -> int:
     """Back up at most ``budget`` queued states, highest priority first; return how many."""
@@ -350,7 +350,7 @@ def settled(cnt, C, s: int) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
            s: int, budget: int) -> int:
     """Back up ``s`` at once (its statistics changed), queue its predecessors by how much that moved it,
@@ -362,7 +362,7 @@ def settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, 
                      prio, C, MP, budget)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
             MP, s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
     """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), then
@@ -372,7 +372,7 @@ def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa,
                   prio, C, MP, s, budget)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def ps_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
                C, MP, src, s, a, r, gamma, s2, terminated, epsilon, budget) -> int:
     """One step of ``tabular-ps`` (a state per observation): record ``(s, a) -> s2`` with reward ``r`` and

@@ -242,7 +242,7 @@ def value_slope(P, F) -> float:
     return F[SLOPE_SUM] / F[SLOPE_N] if F[SLOPE_N] > 0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def disagreement(cnt, head, Vm, e_to, e_next, e_n, e_disc, e_r, C, e_xs, inv_scale, i: int, a: int, seen: float,
                  xs, slope: float, out) -> float:
     """The largest excess ``|seen - v_e| - slope * ||xs - c_e||`` over the settled successors ``e`` of
@@ -270,7 +270,7 @@ def disagreement(cnt, head, Vm, e_to, e_next, e_n, e_disc, e_r, C, e_xs, inv_sca
     return worst
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def remember(IP, S, xs, x, mem_x, mem_i, mem_f, a: int, i: int, j: int, R: float, disc: float) -> None:
     """Keep the transition ``(i, a) -> j`` from ``xs`` to ``x`` in the memory. When it is full, the oldest
     is overwritten: it stays in the model, in the cells it was in, but no longer follows their changes."""
@@ -352,26 +352,36 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, he
         if not math.isfinite(x[d]):
             return NOT_FINITE
     j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
-    return step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next,
-                   e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r, collision,
-                   terminated, truncated, j, d2)
+    if goes_on(P, S, F, r, j, collision, terminated or truncated):
+        return S[ACTION]
+    return end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
+                          e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x,
+                          collision, terminated, truncated, j, d2)
 
 
-@njit(cache=True)
-def step_at(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
-            e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, r: float, collision: bool,
-            terminated: bool, truncated: bool, j: int, d2: float) -> int:
-    """:func:`step` with the nearest vector ``j`` of ``x`` and its squared distance ``d2`` already known (a
-    finite ``x`` and ``r``)."""
-    i = S[CELL]
-    a = S[ACTION]
+@njit(cache=True, inline="always")
+def goes_on(P, S, F, r: float, j: int, collision: bool, done: bool) -> bool:
+    """Count a step of reward ``r`` into the current decision's aggregate transition, and whether the
+    decision goes on: the step stayed in the cell (``j``, the nearest vector), without a collision, and the
+    episode goes on (SPEC §2). When it does not, :func:`end_transition` follows."""
     S[EP_STEPS] += 1
     F[RET] += F[DISC] * r
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
+    return j == S[CELL] and not (collision or done)
+
+
+@njit(cache=True)
+def end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next,
+                   e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x, collision: bool,
+                   terminated: bool, truncated: bool, j: int, d2: float) -> int:
+    """The current decision's aggregate transition ``(i, a) -> j`` ended at ``x`` (a finite observation whose
+    nearest vector ``j`` and squared distance ``d2`` are known; the step is counted by :func:`goes_on`):
+    record and plan, grow, and the next action or ``ENDED``. The rest of :func:`step`, which a fused loop
+    calls only when a transition ends."""
+    i = S[CELL]
+    a = S[ACTION]
     done = terminated or truncated
-    if j == i and not (collision or done):
-        return a
     # The aggregate transition (i, a) -> j has ended.
     travelled = distance_between(xs, x, inv_scale)
     if not collision and travelled > 0.0:
