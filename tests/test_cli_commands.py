@@ -49,7 +49,7 @@ def test_a_partial_reproduction_replaces_the_earlier_one_whole(reproduced, tmp_p
         "summary.json", "partition.png", "learning_curve.png", "models/tabular__seed0.zip"}
     assert list(json.loads((out / "summary.json").read_text())["agents"]) == ["tabular"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh", "out"]  # no staging directory left
-    assert f"wrote {out}: learning_curve.png, partition.png, summary.json, models/ (1 files)" in capsys.readouterr().out
+    assert f"wrote {out}: learning_curve.png, partition.png, summary.json, models/ (1 file)" in capsys.readouterr().out
 
 
 def test_a_reproduction_that_stops_leaves_the_directory_as_it_was(reproduced, tmp_path):

@@ -95,11 +95,12 @@ def _key_values(pairs: list[str], flag: str) -> dict:
             raise UsageError(f"{flag} {key}: the value is empty; give {flag} {key}=VALUE (for None: {key}=null)")
         try:
             value = yaml.safe_load(text)
+            read = str(value).count("#") >= text.count("#")  # (False: a '#' was read as a comment)
         except yaml.YAMLError:
-            value = None
-            if "#" not in text:
-                raise UsageError(f"{flag} {key}: cannot read the value {text!r} as YAML") from None
-        if "#" in text and str(value).count("#") < text.count("#"):  # (a '#' was read as a comment)
+            value, read = None, False
+        if not read and "#" not in text:
+            raise UsageError(f"{flag} {key}: cannot read the value {text!r} as YAML")
+        if not read:
             inner = text.strip()
             quoted = (f"[{', '.join(repr(v.strip()) for v in inner[1:-1].split(','))}]"
                       if inner.startswith("[") and inner.endswith("]") else repr(inner))

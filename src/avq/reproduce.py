@@ -203,9 +203,14 @@ def _replacing(out: Path) -> Iterator[Path]:
 
 def _listing(out: Path) -> str:
     """The entries of a directory, for a message: ``a.json, b.png, models/ (30 files)``."""
+    def describe(p: Path) -> str:
+        if not p.is_dir():
+            return p.name
+        n = sum(1 for _ in p.iterdir())
+        return f"{p.name}/ ({n} file{'' if n == 1 else 's'})"
+
     entries = sorted(out.iterdir(), key=lambda p: (p.is_dir(), p.name))
-    return ", ".join(f"{p.name}/ ({sum(1 for _ in p.iterdir())} files)" if p.is_dir() else p.name
-                     for p in entries if not p.name.startswith("."))
+    return ", ".join(describe(p) for p in entries if not p.name.startswith("."))
 
 
 def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[int], trials: int,
