@@ -14,7 +14,7 @@ def test_reproduce_end_to_end_small_budget(tmp_path, capsys):
     code = main(["reproduce", "--seeds", "2", "--trials", "15", "--out", str(out), "--jobs", "1", "--no-progress"])
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary) == {"layout", "n_states", "trials", "seeds", "agents"}
+    assert set(summary) == {"layout", "n_states", "trials", "seeds", "warmup_s", "agents"}
     assert summary["layout"] == "lau2002" and summary["n_states"] == 98 and summary["trials"] == 15
     assert summary["seeds"] == [0, 1]
     assert list(summary["agents"]) == ["avq-paper", "avq", "tabular"]

@@ -104,7 +104,7 @@ def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "3", "--timesteps", "3"], "not allowed with"),
         (["train", "--config", "missing.yml"], "cannot read config"),
         (["evaluate", "no-such-dir"], "no such run directory"),
-        (["evaluate", "afile.txt"], "is a file; give the run directory"),
+        (["evaluate", "afile.txt"], "afile.txt: not a readable avq model file"),
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "2", "--out", "afile.txt"], "is a file; give a directory"),
         (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile.txt"], "is a file; give a directory"),
         (["train", "--env", "Pendulum-v1", "--episodes", "2"], "use the agent 'avq-actions'"),

@@ -45,6 +45,14 @@ def _nonnegative_int(name: str):
     return _int_at_least(name, 0)
 
 
+_NO_PROGRESS_HELP = "hide the progress bar (hidden anyway when stderr is not a terminal)"
+
+
+def _progress(args: argparse.Namespace) -> bool:
+    """Whether to draw progress bars: not with --no-progress, nor into a file or pipe."""
+    return not args.no_progress and sys.stderr.isatty()
+
+
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from avq.envs.layouts import load_layout
     from avq.reproduce import reproduce
@@ -64,7 +72,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         start=args.start,
         out=args.out,
         n_jobs=args.jobs,
-        progress=not args.no_progress,
+        progress=_progress(args),
     )
     return 0
 
@@ -74,18 +82,31 @@ _CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "tim
 
 
 def _key_values(pairs: list[str], flag: str) -> dict:
-    """``key=value`` pairs, values read as YAML scalars (``0.5``, ``true``, ``[1, 2]``)."""
+    """``key=value`` pairs, values read as YAML scalars (``0.5``, ``true``, ``[1, 2]``, ``null``)."""
     import yaml
 
     out = {}
     for item in pairs or []:
         key, sep, text = item.partition("=")
-        if not sep or not key.strip():
+        key = key.strip()
+        if not sep or not key:
             raise UsageError(f"{flag} expects key=value, not {item!r}")
+        if not text.strip():
+            raise UsageError(f"{flag} {key}: the value is empty; give {flag} {key}=VALUE (for None: {key}=null)")
         try:
-            out[key.strip()] = yaml.safe_load(text) if text.strip() else None
+            value = yaml.safe_load(text)
+            read = str(value).count("#") >= text.count("#")  # (False: a '#' was read as a comment)
         except yaml.YAMLError:
-            raise UsageError(f"{flag} {key}: cannot read the value {text!r}") from None
+            value, read = None, False
+        if not read and "#" not in text:
+            raise UsageError(f"{flag} {key}: cannot read the value {text!r} as YAML")
+        if not read:
+            inner = text.strip()
+            quoted = (f"[{', '.join(repr(v.strip()) for v in inner[1:-1].split(','))}]"
+                      if inner.startswith("[") and inner.endswith("]") else repr(inner))
+            raise UsageError(f"{flag} {key}: cannot read the value {text!r}: in YAML '#' starts a comment; "
+                             f"quote the text that holds it: {flag} \"{key}={quoted}\"")
+        out[key] = value
     return out
 
 
@@ -147,7 +168,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if not os.path.isdir(args.resume):
             raise UsageError(f"--resume {args.resume}: no such run directory")
         try:
-            summary = resume_train(args.resume, progress=not args.no_progress)
+            summary = resume_train(args.resume, progress=_progress(args))
         except KeyboardInterrupt:
             return _interrupted(args.resume)
         if summary.get("already_finished"):
@@ -174,7 +195,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     try:
         summary = train(
             env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
-            env_kwargs=env_kwargs, out=out, progress=not args.no_progress, checkpoint_every=every, log=print,
+            env_kwargs=env_kwargs, out=out, progress=_progress(args), checkpoint_every=every, log=print,
         )
     except KeyboardInterrupt:
         return _interrupted(out)
@@ -203,7 +224,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     from avq.runs import evaluate_run
 
-    report = evaluate_run(args.run_dir, episodes=args.episodes, seed=args.seed)
+    report = evaluate_run(args.run_dir, episodes=args.episodes, seed=args.seed, max_steps=args.max_steps,
+                          progress=_progress(args))
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -215,6 +237,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if report["success_rate"] is not None:
         line += f", success {report['success_rate']:.0%}"
     print(line)
+    if report["capped"]:
+        print(f"{report['capped']} of {report['episodes']} episodes did not end within --max-steps "
+              f"{report['max_steps']} and were cut there (their return is that of the first {report['max_steps']} "
+              "steps)")
     if "maze_success_rate" in report:
         ratio = report["maze_path_ratio"]
         print(f"greedy policy from every start: success {report['maze_success_rate']:.0%}, "
@@ -245,7 +271,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if not os.path.isfile(args.target[0]):
         raise UsageError(f"no such sweep config: {args.target[0]}")
     rows = sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
-                 progress=not args.no_progress)
+                 progress=_progress(args))
     failed = [r for r in rows if r["status"] != "ok"]
     written = [os.path.join(args.out, name) for name in ("results.csv", "curves.png")
                if os.path.exists(os.path.join(args.out, name))]
@@ -264,8 +290,13 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser(
         "reproduce",
         help="reproduce the paper's maze experiment",
-        description="Train each agent for each seed on the maze, print a table, write summary.json, "
-        "partition.png and learning_curve.png.",
+        description="Train each agent for each seed on the maze, print a table, and write into --out: "
+        "summary.json (the table's numbers), partition.png (the cells of the first AVQ agent, first seed), "
+        "partition-NAME.png (those of each further AVQ agent), learning_curve.png, and models/NAME__seedS.zip "
+        "(every trained agent; 'avq evaluate' reads them). The files are written beside --out first and "
+        "replace it as a whole when all are done: files of an earlier reproduction that this run does not "
+        "write are removed, and a run that stops early leaves --out as it was. A directory holding anything "
+        "but an earlier reproduction is refused.",
     )
     rep.add_argument("--layout", default="lau2002", help="preset name or layout file (default lau2002)")
     rep.add_argument("--seeds", type=_positive_int("--seeds"), default=10, help="number of seeds 0..N-1 (default 10)")
@@ -275,7 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", default="reproduce-out", help="output directory (default reproduce-out)")
     rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,
                      help="parallel processes (default 1: the compiled loops make one process fastest here)")
-    rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    rep.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     rep.set_defaults(func=_cmd_reproduce)
 
     tr = sub.add_parser(
@@ -285,7 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
         "into --out. A stopped run continues exactly with --resume DIR.",
     )
     tr.add_argument("--env", help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0")
-    tr.add_argument("--agent", help="agent name (default avq)")
+    from avq.agents.registry import AGENTS
+
+    tr.add_argument("--agent", help=f"agent name (default avq): {', '.join(AGENTS)}")
     budget = tr.add_mutually_exclusive_group()
     budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes to train (default 500)")
     budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="environment steps to train")
@@ -297,7 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--checkpoint-every", type=_positive_int("--checkpoint-every"), metavar="N",
                     help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
     tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
-    tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    tr.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     tr.set_defaults(func=_cmd_train)
 
     sw = sub.add_parser(
@@ -316,16 +349,23 @@ def build_parser() -> argparse.ArgumentParser:
                     "without one a local cluster is started")
     sw.add_argument("--jobs", type=_positive_int("--jobs"), help="parallel workers (default: CPU count)")
     sw.add_argument("--metric", help="report: the metric to rank by (default: the config's, else final_return)")
-    sw.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    sw.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     sw.set_defaults(func=_cmd_sweep)
 
     ev = sub.add_parser("evaluate", help="evaluate a trained run's greedy policy",
-                        description="Load DIR/model.zip and report the mean and spread of the return.")
-    ev.add_argument("run_dir", metavar="DIR", help="a directory written by 'avq train'")
+                        description="Load DIR/model.zip (or a model file) and report the mean and spread of the "
+                        "return. An episode that the environment does not end within --max-steps steps is cut "
+                        "there, and the report says how many were (capped in --json).")
+    ev.add_argument("run_dir", metavar="DIR|MODEL.zip",
+                    help="a directory written by 'avq train', or a model file written by agent.save "
+                    "(such as avq reproduce's models/NAME__seedS.zip)")
     ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
     ev.add_argument("--seed", type=_nonnegative_int("--seed"), default=0,
                     help="seed of the evaluation episodes (default 0)")
+    ev.add_argument("--max-steps", type=_positive_int("--max-steps"), default=100_000, metavar="N",
+                    help="cut an episode the environment has not ended after N steps (default 100000)")
     ev.add_argument("--json", action="store_true", help="print JSON")
+    ev.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     ev.set_defaults(func=_cmd_evaluate)
     return parser
 

@@ -8,6 +8,7 @@ import gymnasium as gym
 import numpy as np
 from numba import njit
 
+from avq._validate import check_int
 from avq.agents.base import BaseAgent
 from avq.agents.save_util import check_env_fits, env_signature
 from avq.envs.grid_maze import GridMaze, grid_move
@@ -192,22 +193,38 @@ def evaluate_policy(
     seed: int | None = 0,
     deterministic: bool = True,
     max_steps: int = 100_000,
+    progress_bar: bool = False,
 ) -> dict[str, Any]:
     """Run ``n_episodes`` with the agent's policy and summarize the returns.
 
     The environment is reset with ``seed`` once, so the same seed gives the same
     start states. ``success`` is reported where the task defines it (reaching the
     goal; for CartPole, lasting until the time limit; or ``info["is_success"]``).
-    An episode longer than ``max_steps`` is cut there and counts as truncated.
+    An episode that the environment has not ended after ``max_steps`` steps is cut
+    there, counts as truncated, and is counted in ``capped``: its return is that of
+    its first ``max_steps`` steps (a policy that loops forever on a task without a
+    time limit, for instance).
+
+    Args:
+        progress_bar: Show a tqdm progress bar of the episodes (drawn after a second;
+            its count of steps moves within a long episode).
 
     Returns:
         ``mean_return``, ``std_return``, ``mean_steps``, ``success_rate`` (or None),
-        and the per-episode ``returns`` and ``steps``.
+        ``capped`` (the episodes cut at ``max_steps``), ``max_steps``, and the
+        per-episode ``returns`` and ``steps``.
     """
     if int(n_episodes) < 1:
         raise ValueError(f"n_episodes must be >= 1, not {n_episodes}")
+    check_int("max_steps", max_steps, 1)
     rule = success_rule(env)
     returns, lengths, successes = [], [], []
+    capped = 0
+    bar = None
+    if progress_bar:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=int(n_episodes), unit="episode", desc="evaluate", delay=1.0, smoothing=0)
     obs, _ = env.reset(seed=seed)
     for ep in range(int(n_episodes)):
         if ep:
@@ -218,8 +235,12 @@ def evaluate_policy(
             obs, r, terminated, truncated, info = env.step(action)
             total += float(r)
             steps += 1
-            if steps >= max_steps and not terminated:
+            if bar is not None and steps % 1000 == 0:
+                bar.set_postfix_str(f"{steps} steps", refresh=False)
+                bar.update(0)  # (redrawn at most every 0.1 s)
+            if steps >= max_steps and not (terminated or truncated):
                 truncated = True
+                capped += 1
             if terminated or truncated:
                 if "is_success" in info:
                     ok = bool(info["is_success"])
@@ -231,6 +252,10 @@ def evaluate_policy(
         returns.append(total)
         lengths.append(steps)
         successes.append(ok)
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
     rate = None if any(s is None for s in successes) else float(np.mean(successes))
     return {
         "episodes": int(n_episodes),
@@ -238,6 +263,8 @@ def evaluate_policy(
         "std_return": float(np.std(returns)),
         "mean_steps": float(np.mean(lengths)),
         "success_rate": rate,
+        "capped": capped,
+        "max_steps": int(max_steps),
         "returns": returns,
         "steps": lengths,
     }

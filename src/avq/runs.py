@@ -210,25 +210,41 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     return config
 
 
-def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | None = 0) -> dict[str, Any]:
-    """Load a run's model and evaluate its greedy policy (and, on a maze, from every start)."""
+def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | None = 0, max_steps: int = 100_000,
+                 progress: bool = False) -> dict[str, Any]:
+    """Load a model and evaluate its greedy policy (and, on a maze, from every start).
+
+    ``run_dir`` is a run directory of :func:`train` (its ``model.zip``, on the environment
+    its ``config.yml`` names) or a model file written by ``agent.save`` (on the environment
+    the file records), such as those ``avq reproduce`` writes into ``models/``. Episodes are
+    cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`; ``capped`` counts them).
+    """
     from avq.agents.base import load
     from avq.evaluation import evaluate_policy
 
-    config = read_run_config(run_dir)
-    env = make_env(config["env"], config.get("env_kwargs"))
-    model_path = Path(run_dir) / "model.zip"
-    if not model_path.is_file():
-        raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
-    model = load(model_path, env=env)
-    result = evaluate_policy(model, env, n_episodes=episodes, seed=seed)
+    if Path(run_dir).is_file():
+        try:
+            model = load(run_dir)
+        except ValueError as exc:
+            raise ValueError(f"{exc}; give a run directory (written by 'avq train') or a model file "
+                             "(written by agent.save)") from None
+        env, agent = model.env, type(model).__name__
+    else:
+        config = read_run_config(run_dir)
+        env, agent = make_env(config["env"], config.get("env_kwargs")), config["agent"]
+        model_path = Path(run_dir) / "model.zip"
+        if not model_path.is_file():
+            raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
+        model = load(model_path, env=env)
+    result = evaluate_policy(model, env, n_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress)
     report: dict[str, Any] = {
-        "run": str(run_dir), "env": config["env"], "agent": config["agent"], "n_cells": int(model.n_cells),
+        "run": str(run_dir), "env": env.spec.id, "agent": agent, "n_cells": int(model.n_cells),
         "size_unit": model.size_unit,
-        **{k: result[k] for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate")},
+        **{k: result[k] for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate", "capped",
+                                  "max_steps")},
     }
     if hasattr(env.unwrapped, "layout"):
-        maze = evaluate_maze(model, make_env(config["env"], config.get("env_kwargs")))
+        maze = evaluate_maze(model, gym.make(env.spec))  # (a second env like the first)
         report["maze_success_rate"] = maze["success_rate"]
         report["maze_path_ratio"] = maze["path_ratio"]
     return report

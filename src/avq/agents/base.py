@@ -204,7 +204,8 @@ class BaseAgent:
             total_episodes: Number of episodes to finish in this call.
             total_timesteps: Number of primitive environment steps to take in this call.
             callback: ``callback(agent, record)`` after every episode; ``False`` stops.
-            progress_bar: Show a tqdm progress bar.
+            progress_bar: Show a tqdm progress bar of the agent's episodes (or steps): it starts
+                at those already learned and ends where this call does, and stays on screen.
             checkpoint_every: Every this many episodes (counted from the agent's
                 first episode), save the agent to ``checkpoint_dir/checkpoint.zip``
                 and bring ``checkpoint_dir/progress.csv`` (one row per episode) up
@@ -240,9 +241,10 @@ class BaseAgent:
         if progress_bar:
             from tqdm.auto import tqdm
 
+            done = self.num_episodes if total_episodes is not None else self.num_timesteps
             total = total_episodes if total_episodes is not None else total_timesteps
             unit = "episode" if total_episodes is not None else "step"
-            bar = tqdm(total=total, unit=unit, desc=type(self).__name__, leave=False)
+            bar = tqdm(total=done + total, initial=done, unit=unit, desc=type(self).__name__)
         call = _LearnCall(total_timesteps, total_episodes, callback, bar, every, checkpoint, log,
                           time.perf_counter())
         fused = self._fused_runner()
