@@ -65,6 +65,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         out=args.out,
         n_jobs=args.jobs,
         progress=not args.no_progress,
+        animate=not args.no_animation,
     )
     return 0
 
@@ -138,7 +139,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         given = [flag for flag, value in (("--env", args.env), ("--agent", args.agent), ("--episodes", args.episodes),
                                           ("--timesteps", args.timesteps), ("--seed", args.seed), ("--out", args.out),
                                           ("--set", args.set), ("--env-kwargs", args.env_kwargs),
-                                          ("--config", args.config), ("--checkpoint-every", args.checkpoint_every))
+                                          ("--config", args.config), ("--checkpoint-every", args.checkpoint_every),
+                                          ("--animate", args.animate or None))
                  if value is not None]
         if given:
             raise UsageError(f"--resume continues a run as its config.yml says; drop {given[0]}")
@@ -171,15 +173,44 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from avq.runs import default_run_dir
 
     out = args.out or config.get("out") or str(default_run_dir(env_id, agent, seed))
+    recorder = _partition_recorder(env_id, agent, env_kwargs) if args.animate else None
     try:
         summary = train(
             env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
             env_kwargs=env_kwargs, out=out, progress=not args.no_progress, checkpoint_every=every, log=print,
+            callback=recorder,
         )
     except KeyboardInterrupt:
         return _interrupted(out)
     _print_train_summary(summary)
+    if recorder is not None:
+        from avq.plotting import animate_partition
+
+        views = recorder.views()
+        gif = animate_partition(views, recorder.env, os.path.join(summary["out"], "partition.gif"),
+                                title=f"{agent} on {env_id}, seed {seed}")
+        print(f"wrote {gif} ({len(views)} frames)")
     return 0
+
+
+#: The environments whose partition ``avq train --animate`` draws.
+_ANIMATED_ENVS = ("avq/GridMaze-v0", "avq/RobotMaze-v0")
+
+
+def _partition_recorder(env_id: str, agent: str, env_kwargs: dict):
+    """The ``learn`` callback of ``--animate``, after checking that there is a partition to draw."""
+    from avq.agents.registry import CLASSES
+    from avq.figure_data import PartitionRecorder, has_partition
+    from avq.runs import make_env
+
+    if env_id not in _ANIMATED_ENVS:
+        raise UsageError(f"--animate draws the partition of a maze ({' or '.join(_ANIMATED_ENVS)}), not of {env_id}; "
+                         "drop --animate or choose one of those")
+    if agent in CLASSES and not has_partition(CLASSES[agent]):
+        with_cells = ", ".join(name for name, cls in CLASSES.items() if has_partition(cls))
+        raise UsageError(f"--animate draws an agent's cells, and {agent} has none; drop --animate or choose an "
+                         f"agent with cells: {with_cells}")
+    return PartitionRecorder(make_env(env_id, env_kwargs))
 
 
 def _interrupted(run_dir: str) -> int:
@@ -276,6 +307,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,
                      help="parallel processes (default 1: the compiled loops make one process fastest here)")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    rep.add_argument("--no-animation", action="store_true",
+                     help="do not write partition.gif, the animation of the headline agent's cells and greedy "
+                     "actions as it learns (on its best seed; a few seconds)")
     rep.set_defaults(func=_cmd_reproduce)
 
     tr = sub.add_parser(
@@ -297,6 +331,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--checkpoint-every", type=_positive_int("--checkpoint-every"), metavar="N",
                     help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
     tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
+    tr.add_argument("--animate", action="store_true",
+                    help="also write DIR/partition.gif: the cells and their greedy actions as they learn, 50-100 "
+                    "frames (avq/GridMaze-v0 and avq/RobotMaze-v0; agents with cells)")
     tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tr.set_defaults(func=_cmd_train)
 
