@@ -332,8 +332,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
     tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
     tr.add_argument("--animate", action="store_true",
-                    help="also write DIR/partition.gif: the cells and their greedy actions as they learn, 50-100 "
-                    "frames (avq/GridMaze-v0 and avq/RobotMaze-v0; agents with cells)")
+                    help="also write DIR/partition.gif: the cells and their greedy actions as they learn, up to "
+                    "about 100 frames evenly spaced over the episodes (avq/GridMaze-v0 and avq/RobotMaze-v0; "
+                    "agents with cells)")
     tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tr.set_defaults(func=_cmd_train)
 
