@@ -78,7 +78,7 @@ def plot(rows: list[dict], tasks: list[str], configs: list[str], seeds: int, pat
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from avq.plotting import mean_ci95, smooth
+    from avq.plotting import mean_ci95, running_mean
 
     fig, axes = plt.subplots(2, len(tasks), figsize=(6 * len(tasks), 7.5), squeeze=False,
                              gridspec_kw={"height_ratios": [2, 1]})
@@ -86,14 +86,14 @@ def plot(rows: list[dict], tasks: list[str], configs: list[str], seeds: int, pat
         top, bottom = axes[0, col], axes[1, col]
         for config in configs:
             runs = [r for r in rows if r["task"] == task and r["config"] == config]
-            curves = np.stack([smooth(r["curve"], 10) for r in runs])
-            mean, half = mean_ci95(curves)
-            x = np.arange(1, curves.shape[1] + 1)
+            means = [running_mean(r["curve"], 10) for r in runs]
+            mean, half = mean_ci95(np.stack([m for _, m in means]))
+            x = means[0][0]
             style = {"color": "black", "lw": 2} if config.startswith("adaptive") else {"lw": 1}
             top.plot(x, mean, label=config, **style)
             top.fill_between(x, mean - half, mean + half, alpha=0.2, color=top.lines[-1].get_color())
             sizes = np.stack([r["n_actions_curve"] for r in runs])
-            bottom.plot(x, sizes.mean(axis=0), label=config, **style)
+            bottom.plot(np.arange(1, sizes.shape[1] + 1), sizes.mean(axis=0), label=config, **style)
         top.set_title(f"{task}\nreturn (10-episode mean; mean and 95% interval over {seeds} seeds)", fontsize=9)
         top.set_ylabel("return")
         top.grid(alpha=0.3)

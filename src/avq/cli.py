@@ -73,6 +73,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         out=args.out,
         n_jobs=args.jobs,
         progress=_progress(args),
+        animate=not args.no_animation,
     )
     return 0
 
@@ -159,7 +160,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         given = [flag for flag, value in (("--env", args.env), ("--agent", args.agent), ("--episodes", args.episodes),
                                           ("--timesteps", args.timesteps), ("--seed", args.seed), ("--out", args.out),
                                           ("--set", args.set), ("--env-kwargs", args.env_kwargs),
-                                          ("--config", args.config), ("--checkpoint-every", args.checkpoint_every))
+                                          ("--config", args.config), ("--checkpoint-every", args.checkpoint_every),
+                                          ("--animate", args.animate or None))
                  if value is not None]
         if given:
             raise UsageError(f"--resume continues a run as its config.yml says; drop {given[0]}")
@@ -192,15 +194,44 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from avq.runs import default_run_dir
 
     out = args.out or config.get("out") or str(default_run_dir(env_id, agent, seed))
+    recorder = _partition_recorder(env_id, agent, env_kwargs) if args.animate else None
     try:
         summary = train(
             env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
             env_kwargs=env_kwargs, out=out, progress=_progress(args), checkpoint_every=every, log=print,
+            callback=recorder,
         )
     except KeyboardInterrupt:
         return _interrupted(out)
     _print_train_summary(summary)
+    if recorder is not None:
+        from avq.plotting import animate_partition
+
+        views = recorder.views()
+        gif = animate_partition(views, recorder.env, os.path.join(summary["out"], "partition.gif"),
+                                title=f"{agent} on {env_id}, seed {seed}")
+        print(f"wrote {gif} ({len(views)} frames)")
     return 0
+
+
+#: The environments whose partition ``avq train --animate`` draws.
+_ANIMATED_ENVS = ("avq/GridMaze-v0", "avq/RobotMaze-v0")
+
+
+def _partition_recorder(env_id: str, agent: str, env_kwargs: dict):
+    """The ``learn`` callback of ``--animate``, after checking that there is a partition to draw."""
+    from avq.agents.registry import CLASSES
+    from avq.figure_data import PartitionRecorder, has_partition
+    from avq.runs import make_env
+
+    if env_id not in _ANIMATED_ENVS:
+        raise UsageError(f"--animate draws the partition of a maze ({' or '.join(_ANIMATED_ENVS)}), not of {env_id}; "
+                         "drop --animate or choose one of those")
+    if agent in CLASSES and not has_partition(CLASSES[agent]):
+        with_cells = ", ".join(name for name, cls in CLASSES.items() if has_partition(cls))
+        raise UsageError(f"--animate draws an agent's cells, and {agent} has none; drop --animate or choose an "
+                         f"agent with cells: {with_cells}")
+    return PartitionRecorder(make_env(env_id, env_kwargs))
 
 
 def _interrupted(run_dir: str) -> int:
@@ -291,8 +322,10 @@ def build_parser() -> argparse.ArgumentParser:
         "reproduce",
         help="reproduce the paper's maze experiment",
         description="Train each agent for each seed on the maze, print a table, and write into --out: "
-        "summary.json (the table's numbers), partition.png (the cells of the first AVQ agent, first seed), "
-        "partition-NAME.png (those of each further AVQ agent), learning_curve.png, and models/NAME__seedS.zip "
+        "summary.json (the table's numbers), partition.png (the cells of the headline agent, avq-paper if it "
+        "ran, on its best and its worst seed), partition-NAME.png (those of each further AVQ agent, first seed), "
+        "partition.gif (the headline agent's cells as it learns, on its best seed; not with --no-animation), "
+        "learning_curve.png, and models/NAME__seedS.zip "
         "(every trained agent; 'avq evaluate' reads them). The files are written beside --out first and "
         "replace it as a whole when all are done: files of an earlier reproduction that this run does not "
         "write are removed, and a run that stops early leaves --out as it was. A directory holding anything "
@@ -307,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,
                      help="parallel processes (default 1: the compiled loops make one process fastest here)")
     rep.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
+    rep.add_argument("--no-animation", action="store_true",
+                     help="do not write partition.gif, the animation of the headline agent's cells and greedy "
+                     "actions as it learns (on its best seed; a few seconds)")
     rep.set_defaults(func=_cmd_reproduce)
 
     tr = sub.add_parser(
@@ -330,6 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--checkpoint-every", type=_positive_int("--checkpoint-every"), metavar="N",
                     help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
     tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
+    tr.add_argument("--animate", action="store_true",
+                    help="also write DIR/partition.gif: the cells and their greedy actions as they learn, up to "
+                    "about 100 frames evenly spaced over the episodes (avq/GridMaze-v0 and avq/RobotMaze-v0; "
+                    "agents with cells)")
     tr.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     tr.set_defaults(func=_cmd_train)
 

@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 
 from avq._io import atomic_write_bytes
+from avq.agents.base import Callback
 from avq.agents.registry import AGENTS, make_agent
 from avq.envs.layouts import Layout, LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
@@ -76,18 +77,20 @@ def train_maze_run(
     start: str = "random",
     model_path: str | None = None,
     overrides: dict[str, Any] | None = None,
+    callback: Callback | None = None,
 ) -> ReproduceRun:
     """Train one agent on a grid maze for ``trials`` episodes and evaluate its greedy policy.
 
     A plain top-level function of its parameters, so that it can run in any process.
     ``wall_s`` times the training alone: the kernels are compiled (or loaded) before, by
     :func:`warm_up` (``warmup_s``).
+    ``callback`` goes to ``learn`` (it sees the agent after every episode).
     """
     warmup = warm_up(agent_name, layout, start, overrides)
     env = gym.make("avq/GridMaze-v0", layout=layout, start=start)
     agent = make_agent(agent_name, env, seed=seed, **(overrides or {}))
     t0 = time.perf_counter()
-    agent.learn(total_episodes=trials)
+    agent.learn(total_episodes=trials, callback=callback)
     wall = time.perf_counter() - t0
     eval_env = gym.make("avq/GridMaze-v0", layout=layout, start=start)
     ev = evaluate_maze(agent, eval_env)
@@ -123,6 +126,7 @@ def reproduce(
     n_jobs: int | None = None,
     progress: bool = True,
     log: Callable[[str], None] | None = print,
+    animate: bool = True,
 ) -> dict[str, Any]:
     """Train every agent for every seed on a maze; write ``summary.json``, the figures and the models.
 
@@ -131,6 +135,13 @@ def reproduce(
     one does not write are gone with it, and a run that stops early (an error, Ctrl-C) leaves ``out``
     as it was. ``out`` must be new, empty, or an earlier reproduction's directory (one holding its
     ``summary.json``); another directory is refused, so that nothing else is deleted.
+
+    ``partition.png`` shows the headline agent (``avq-paper`` if it ran, else the first AVQ
+    agent, else the first agent) on the seed where its greedy policy succeeds most and, beside
+    it, on the one where it succeeds least; ``partition-NAME.png`` every other AVQ agent on the
+    first seed; ``learning_curve.png`` all of them. With ``animate`` (and a headline agent with
+    cells), ``partition.gif`` shows the headline agent's partition as it learns on its best seed (that run again, with a
+    :class:`~avq.figure_data.PartitionRecorder`: the same run, since training is seeded).
 
     Returns the summary (the content of ``summary.json``).
     """
@@ -152,7 +163,7 @@ def reproduce(
     _check_replaceable(out)
     t0 = time.perf_counter()
     with _replacing(out) as staging:
-        summary = _run_and_write(staging, lay, layout, seeds, trials, agents, start, n_jobs, progress, log)
+        summary = _run_and_write(staging, lay, layout, seeds, trials, agents, start, n_jobs, progress, log, animate)
     if log is not None:
         log(f"wrote {out}: {_listing(out)} ({time.perf_counter() - t0:.1f} s)")
     return summary
@@ -215,7 +226,7 @@ def _listing(out: Path) -> str:
 
 def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[int], trials: int,
                    agents: Sequence[str], start: str, n_jobs: int | None, progress: bool,
-                   log: Callable[[str], None] | None) -> dict[str, Any]:
+                   log: Callable[[str], None] | None, animate: bool) -> dict[str, Any]:
     """Train, evaluate, and write summary.json, the figures and the models into ``out``; return the summary."""
     (out / "models").mkdir(parents=True, exist_ok=True)
     layout_arg: LayoutSpec = list(lay.rows)
@@ -262,27 +273,44 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
     atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
 
     from avq.agents.base import load
-    from avq.plotting import plot_learning_curves, plot_partition
+    from avq.plotting import animate_partition, plot_learning_curves, plot_partition, plot_partitions
 
     first = int(seeds[0])
     avq_names = [n for n in agents if n.startswith("avq")]
     env = gym.make("avq/GridMaze-v0", layout=layout_arg, start=start)
     figures = []
-    # The partition of every AVQ agent's first seed (or of the first agent's, with none):
-    # partition.png for the first, partition-NAME.png for the others.
-    for k, name in enumerate(avq_names or list(agents[:1])):
-        model = load(by[(name, first)].model_path, env=env)
-        success = by[(name, first)].success_rate
-        figures.append(out / ("partition.png" if k == 0 else f"partition-{name}.png"))
-        plot_partition(
-            model, env, figures[-1],
-            title=f"{name}, seed {first}: {model.n_cells} cells for {lay.n_states} states, "
-                  f"greedy policy reaches the goal from {success:.0%} of starts",
-        )
+
+    def title(name: str, seed: int, n_cells: int, which: str = "") -> str:
+        return (f"{name}, seed {seed}{which}: {n_cells} cells for {lay.n_states} states\n"
+                f"greedy policy reaches the goal from {by[(name, seed)].success_rate:.0%} of starts")
+
+    # partition.png: the headline agent where its rules work best, beside where they work worst.
+    headline = "avq-paper" if "avq-paper" in agents else (avq_names or list(agents))[0]
+    ranked = sorted((int(s) for s in seeds), key=lambda s: -by[(headline, s)].success_rate)  # stable: seed order
+    shown = [ranked[0]] if by[(headline, ranked[0])].success_rate == by[(headline, ranked[-1])].success_rate \
+        else [ranked[0], ranked[-1]]
+    models = [load(by[(headline, s)].model_path, env=env) for s in shown]
+    which = [""] if len(shown) == 1 else [f" (best of {len(seeds)} seeds)", f" (worst of {len(seeds)} seeds)"]
+    figures.append(out / "partition.png")
+    plot_partitions(models, env, figures[-1],
+                    titles=[title(headline, s, m.n_cells, w) for s, m, w in zip(shown, models, which)])
+    # partition-NAME.png: every other AVQ agent's first seed.
+    for name in avq_names:
+        if name != headline:
+            model = load(by[(name, first)].model_path, env=env)
+            figures.append(out / f"partition-{name}.png")
+            plot_partition(model, env, figures[-1], title=title(name, first, model.n_cells))
+    from avq.figure_data import PartitionRecorder, has_partition
+
+    if animate and has_partition(AGENTS[headline][0]):
+        recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout=layout_arg, start=start))
+        train_maze_run(headline, layout_arg, shown[0], trials, start, callback=recorder)
+        figures.append(out / "partition.gif")
+        animate_partition(recorder.views(), env, figures[-1], title=f"{headline}, seed {shown[0]}")
     curves = {n: [by[(n, int(s))].steps_per_trial for s in seeds] for n in agents}
     cells = {n: [by[(n, int(s))].cells_per_trial for s in seeds] for n in avq_names}
     plot_learning_curves(curves, out / "learning_curve.png", cells=cells or None,
-                         title=f"{summary['layout']}: steps per trial (mean, 95% t-interval over seeds)")
+                         title=f"{summary['layout']}: steps per trial")
     if log is not None:
         log(format_table(summary))
     return summary

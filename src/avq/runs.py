@@ -13,7 +13,7 @@ import numpy as np
 
 from avq._io import ProgressLog, atomic_write_bytes
 from avq._validate import check_int
-from avq.agents.base import PROGRESS_COLUMNS
+from avq.agents.base import PROGRESS_COLUMNS, Callback
 from avq.agents.registry import AGENTS, make_agent
 from avq.evaluation import evaluate_maze
 
@@ -52,6 +52,7 @@ def train(
     progress: bool = True,
     checkpoint_every: int = 100,
     log: Callable[[str], None] | None = None,
+    callback: Callback | None = None,
 ) -> dict[str, Any]:
     """Train one agent on one environment and write the run directory.
 
@@ -60,6 +61,7 @@ def train(
     ``checkpoint_every`` episodes (so that :func:`resume_train` can continue a
     stopped run exactly), then ``model.zip`` and ``summary.json``. Returns the summary.
     ``log`` gets one line before training: which defaults the agent took (``agent.defaults_used``).
+    ``callback`` goes to ``learn`` (``callback(agent, record)`` after every episode).
     """
     import yaml
 
@@ -96,7 +98,7 @@ def train(
     atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
     if log is not None:
         log(str(model.defaults_used))
-    return _run_to_the_end(model, out, config, progress)
+    return _run_to_the_end(model, out, config, progress, callback)
 
 
 def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str, Any]:
@@ -151,14 +153,15 @@ def _recorded_params(config: dict[str, Any]) -> dict[str, Any]:
     return params
 
 
-def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: bool) -> dict[str, Any]:
+def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: bool,
+                    callback: Callback | None = None) -> dict[str, Any]:
     """Learn what is left of the run's budget with checkpoints; write progress, model and summary."""
     every = int(config.get("checkpoint_every") or 100)
     if config.get("episodes") is not None:
         left = {"total_episodes": max(0, int(config["episodes"]) - model.num_episodes)}
     else:
         left = {"total_timesteps": max(0, int(config["timesteps"]) - model.num_timesteps)}
-    model.learn(**left, progress_bar=progress, checkpoint_every=every, checkpoint_dir=out)
+    model.learn(**left, progress_bar=progress, checkpoint_every=every, checkpoint_dir=out, callback=callback)
     ProgressLog(out / "progress.csv", PROGRESS_COLUMNS).sync(model.history_)
     model.save(out / "model.zip")
     hist = model.episode_history()

@@ -52,7 +52,7 @@ def _config_label(agent: str, point: dict[str, Any]) -> str:
 
 
 def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict[int, dict[str, Any]]) -> bool:
-    """Return per episode, mean and 95% interval over seeds, one line per configuration."""
+    """Return per episode, mean and spread over seeds, one line per configuration (plot_learning_curves)."""
     from avq.plotting import plot_learning_curves
 
     curves: dict[str, list[np.ndarray]] = {}
@@ -81,10 +81,10 @@ def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict
         ranked = sorted(curves, key=lambda k: -np.mean(score.get(k, [-math.inf])) if higher
                         else np.mean(score.get(k, [math.inf])))
         curves = {k: curves[k] for k in ranked[:10]}
-        note = f", the 10 best of {len(ranked)} configurations by {cfg.metric}"
+        note = f" (the 10 best of {len(ranked)} configurations by {cfg.metric})"
     # Each configuration is drawn over the episodes all its seeds have.
     plot_learning_curves(curves, path, ylabel="return per episode", xlabel="episode",
-                         title=f"{cfg.env}: return per episode\n(mean, 95% t-interval over seeds{note})")
+                         title=f"{cfg.env}: return per episode{note}")
     return True
 
 

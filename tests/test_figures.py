@@ -1,0 +1,221 @@
+"""What the figures draw: greedy walks that fail, arrows on their own cells, running means, the
+spread over seeds, the partition's animation, and `avq train --animate`."""
+
+import re
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from PIL import Image
+
+import avq.envs  # noqa: F401  (registers the mazes)
+from avq.agents.registry import make_agent
+from avq.cli import main
+from avq.evaluation import evaluate_maze
+from avq.figure_data import PartitionRecorder, cell_anchors, greedy_walk, partition_view, sample_walks
+from avq.plotting import animate_partition, learning_curves_figure, running_mean
+
+N, E, S, W = 0, 1, 2, 3
+SMALL = ["#######",
+         "#....G#",
+         "#.....#",
+         "#######"]
+
+
+class TablePolicy:
+    """A greedy policy written by hand: ``actions[(x, y)]``."""
+
+    def __init__(self, actions):
+        self.actions = actions
+
+    def predict(self, obs, deterministic=True):
+        return self.actions[(int(obs[0]), int(obs[1]))], None
+
+
+def small_maze():
+    return gym.make("avq/GridMaze-v0", layout=SMALL)
+
+
+# -- greedy walks ------------------------------------------------------------------------------------
+
+
+def test_a_walk_into_a_wall_ends_at_the_bump_and_says_so():
+    walk = greedy_walk(TablePolicy({(1, 1): E, (2, 1): N}), small_maze(), (1, 1))
+    assert walk.outcome == "bump" and walk.steps == 2 and walk.bump_action == N
+    assert walk.positions.tolist() == [[1, 1], [2, 1]]  # a bump does not move: (2, 1) is the last square
+
+
+def test_a_walk_into_a_wall_from_the_start_still_has_its_start_and_direction():
+    walk = greedy_walk(TablePolicy({(1, 1): W}), small_maze(), (1, 1))
+    assert walk.outcome == "bump" and walk.steps == 1 and walk.bump_action == W
+    assert walk.positions.tolist() == [[1, 1]]
+
+
+def test_a_walk_round_a_loop_ends_where_the_loop_closes():
+    square = {(1, 1): S, (1, 2): E, (2, 2): N, (2, 1): W, (3, 1): W}
+    walk = greedy_walk(TablePolicy(square), small_maze(), (3, 1))
+    assert walk.outcome == "loop" and walk.loop_from == 1 and walk.steps == 5
+    assert walk.positions.tolist() == [[3, 1], [2, 1], [1, 1], [1, 2], [2, 2], [2, 1]]
+
+
+def test_a_walk_to_the_goal_and_one_cut_by_the_limit():
+    east = {(x, y): E for x in range(1, 6) for y in (1, 2)}
+    walk = greedy_walk(TablePolicy(east), small_maze(), (1, 1))
+    assert walk.outcome == "goal" and walk.steps == 4
+    assert walk.positions.tolist() == [[1, 1], [2, 1], [3, 1], [4, 1], [5, 1]]
+    slippery = gym.make("avq/GridMaze-v0", layout=SMALL, slip=0.5)  # random: no bump or loop ends the walk
+    slippery.unwrapped.reset(seed=0)
+    walk = greedy_walk(TablePolicy({**east, (5, 2): N, (1, 1): W}), slippery, (1, 1), max_steps=3)
+    assert walk.outcome in ("goal", "limit") and walk.steps <= 3
+
+
+def test_the_sample_walks_of_a_trained_agent_agree_with_evaluate_maze():
+    env = gym.make("avq/GridMaze-v0", layout="lau2002")
+    agent = make_agent("avq-paper", env, seed=0).learn(total_episodes=300)
+    outcomes = {o["start"]: o for o in evaluate_maze(agent, gym.make("avq/GridMaze-v0", layout="lau2002"))["outcomes"]}
+    walks = sample_walks(agent, gym.make("avq/GridMaze-v0", layout="lau2002"))
+    assert [w.outcome == "goal" for w in walks] == [True, False]  # this seed reaches the goal from some starts only
+    for walk in walks:
+        start = tuple(int(v) for v in walk.positions[0])
+        assert outcomes[start]["success"] == (walk.outcome == "goal")
+        same = [o for o in outcomes.values() if o["success"] == outcomes[start]["success"]]
+        assert outcomes[start]["shortest"] == max(o["shortest"] for o in same)
+    assert walks[0].steps == outcomes[tuple(int(v) for v in walks[0].positions[0])]["steps"]
+    assert walks[1].outcome in ("bump", "loop") and len(walks[1].positions) >= 1
+
+
+# -- where the arrows go ---------------------------------------------------------------------------------
+
+
+def test_each_cell_is_labelled_on_its_own_squares_once_per_connected_part():
+    # cells by square (y down):   0 0 0 1
+    #                             0 2 2 2
+    #                             0 2 1 1
+    squares = np.array([(x, y) for y in range(3) for x in range(4)])
+    cells = np.array([0, 0, 0, 1,
+                      0, 2, 2, 2,
+                      0, 2, 1, 1])
+    anchors = cell_anchors(squares, cells)
+    # cell 0 is an L whose mean (0.6, 0.6) is nearest (1, 1), a square of cell 2: its anchor is its own
+    # square nearest that mean, (1, 0) before (0, 1) on the tie; cell 1 has two parts, each labelled.
+    assert anchors.tolist() == [[0, 1], [1, 3], [1, 10], [2, 6]]
+    assert all(cells[i] == c for c, i in anchors)
+
+
+def test_the_arrows_of_a_trained_agent_lie_on_their_own_cells():
+    env = gym.make("avq/GridMaze-v0", layout="lau2002")
+    agent = make_agent("avq", env, seed=0).learn(total_episodes=300)
+    recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout="lau2002"))
+    view = partition_view(agent, recorder.maze)
+    assert all(view.cells[i] == c for c, i in view.anchors)
+    assert set(view.anchors[:, 0]) == set(view.cells)  # every cell that holds a square is labelled
+    # The case of the figure: a codebook vector whose own squares do not include the square it lies on.
+    nearest_square = [np.argmin(((view.squares - v) ** 2).sum(axis=1)) for v in view.vectors]
+    assert any(view.cells[i] != c for c, i in enumerate(nearest_square))
+    # The arrow is the cell's greedy action.
+    for c, i in view.anchors:
+        assert view.actions[i] == agent.q_[c].argmax()
+
+
+# -- learning curves ------------------------------------------------------------------------------------
+
+
+def test_the_running_mean_uses_whole_windows_only():
+    trials, mean = running_mean([10, 0, 0, 0, 5, 5], 2)
+    assert trials.tolist() == [2, 3, 4, 5, 6] and mean.tolist() == [5.0, 0.0, 0.0, 2.5, 5.0]
+    trials, mean = running_mean(np.full(50, 7.0), 20)  # no padding pulls the start down
+    assert trials[0] == 20 and np.all(mean == 7.0)
+    trials, mean = running_mean([3, 1, 2], 1)
+    assert trials.tolist() == [1, 2, 3] and mean.tolist() == [3, 1, 2]
+
+
+@pytest.mark.parametrize("seeds,bands,thin", [(3, 0, 3), (5, 1, 0)])
+def test_few_seeds_are_drawn_one_by_one_and_many_with_an_interval(seeds, bands, thin):
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    rng = np.random.default_rng(0)
+    curves = {"avq": [rng.normal(50, 10, 200) for _ in range(seeds)],
+              "tabular": [rng.normal(50, 10, 200) for _ in range(seeds)]}
+    cells = {"avq": [np.arange(200) // 10 for _ in range(seeds)]}
+    fig = learning_curves_figure(curves, cells=cells)
+    ax, ax2 = fig.axes
+    assert sum(isinstance(c, PolyCollection) for c in ax.collections) == bands * 2
+    assert len(ax.lines) == (thin + 1) * 2  # the seeds (thin) and the mean of each agent
+    assert ax.lines[-1].get_xdata()[0] == 20  # the 20-trial mean starts at trial 20
+    assert "not drawn: tabular" in ax2.get_title()
+    assert ax.get_legend() is None and ax2.get_legend() is None and len(fig.legends) == 1  # off the data
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [f"avq ({seeds} seeds)", f"tabular ({seeds} seeds)"]
+    plt.close(fig)
+
+
+# -- the animation -----------------------------------------------------------------------------------------
+
+
+def test_the_recorder_keeps_evenly_spaced_views_and_the_last_and_changes_nothing():
+    env = gym.make("avq/GridMaze-v0", layout="lau2002")
+    recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout="lau2002"), max_frames=4)
+    agent = make_agent("avq-paper", env, seed=1).learn(total_episodes=20, callback=recorder)
+    views = recorder.views()
+    # every: 1 -> 2 (at episode 6) -> 4 (at 10) -> 8 (at 20); the first view and the last are kept besides
+    assert [v.episode for v in views] == [1, 8, 16, 20]
+    plain = make_agent("avq-paper", gym.make("avq/GridMaze-v0", layout="lau2002"), seed=1).learn(total_episodes=20)
+    assert np.array_equal(plain.codebook_, agent.codebook_) and np.array_equal(plain.q_, agent.q_)
+    last = partition_view(plain, recorder.maze)
+    assert np.array_equal(views[-1].cells, last.cells) and np.array_equal(views[-1].actions, last.actions)
+    assert views[0].n_cells == make_agent("avq-paper", gym.make("avq/GridMaze-v0", layout="lau2002"),
+                                          seed=1).learn(total_episodes=1).n_cells
+
+
+def test_the_gif_has_one_frame_per_view(tmp_path):
+    env = gym.make("avq/GridMaze-v0", layout="lau2002")
+    recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout="lau2002"))
+    make_agent("avq", env, seed=0).learn(total_episodes=12, callback=recorder)
+    views = recorder.views()
+    assert [v.episode for v in views] == list(range(1, 13))
+    path = animate_partition(views, recorder.env, tmp_path / "p.gif", title="avq")
+    with Image.open(path) as gif:
+        assert gif.format == "GIF" and gif.n_frames == 12
+
+
+def test_train_animate_writes_the_gif_on_both_mazes(tmp_path, capsys):
+    out = tmp_path / "grid"
+    assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "15", "--out", str(out),
+                 "--animate", "--no-progress"]) == 0
+    assert f"wrote {out / 'partition.gif'} (15 frames)" in capsys.readouterr().out
+    with Image.open(out / "partition.gif") as gif:
+        assert gif.n_frames == 15
+    out = tmp_path / "robot"
+    assert main(["train", "--env", "avq/RobotMaze-v0", "--episodes", "3", "--out", str(out), "--animate",
+                 "--no-progress"]) == 0
+    with Image.open(out / "partition.gif") as gif:
+        assert gif.n_frames == 3
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--env", "CartPole-v1"], "--animate draws the partition of a maze (avq/GridMaze-v0 or avq/RobotMaze-v0), "
+                               "not of CartPole-v1"),
+    (["--env", "avq/GridMaze-v0", "--agent", "tabular"], "--animate draws an agent's cells, and tabular has none"),
+])
+def test_train_animate_refuses_what_has_no_partition(tmp_path, capsys, args, needle):
+    out = tmp_path / "run"
+    assert main(["train", *args, "--episodes", "5", "--out", str(out), "--animate", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists()  # refused before anything was written
+
+
+def test_train_animate_is_not_for_resume(tmp_path, capsys):
+    assert main(["train", "--resume", str(tmp_path), "--animate"]) == 2
+    assert "drop --animate" in capsys.readouterr().err
+
+
+def test_reproduce_animates_the_headline_agent_unless_asked_not_to(tmp_path, capsys):
+    out = tmp_path / "rep"
+    args = ["reproduce", "--seeds", "2", "--trials", "15", "--agents", "avq-paper,tabular", "--no-progress"]
+    assert main(args + ["--out", str(out)]) == 0
+    assert re.search(rf"wrote {re.escape(str(out))}: .*partition\.gif", capsys.readouterr().out)
+    with Image.open(out / "partition.gif") as gif:
+        assert gif.n_frames == 15
+    assert main(args + ["--out", str(tmp_path / "still"), "--no-animation"]) == 0
+    assert (tmp_path / "still" / "partition.png").exists() and not (tmp_path / "still" / "partition.gif").exists()
