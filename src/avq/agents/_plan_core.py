@@ -104,10 +104,13 @@ def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_s
         return best
     best = k
     best_d = _row_distance2(X, t, off, V, k, inv_scale)
-    for c in (u, w):
-        d = _row_distance2(X, t, off, V, c, inv_scale)
-        if d < best_d or (d == best_d and c < best):
-            best, best_d = c, d
+    d = _row_distance2(X, t, off, V, u, inv_scale)
+    if d < best_d or (d == best_d and u < best):
+        best, best_d = u, d
+    if w != u:  # (written out, not a loop over (u, w): this runs for every remembered transition)
+        d = _row_distance2(X, t, off, V, w, inv_scale)
+        if d < best_d or (d == best_d and w < best):
+            best = w
     return best
 
 
