@@ -12,9 +12,9 @@ from typing import Any, Callable, Sequence
 import gymnasium as gym
 import numpy as np
 
-from avq._io import atomic_write_bytes
+from avq._io import atomic_write_bytes, hold_directory, make_dirs
 from avq.agents.registry import AGENTS, make_agent
-from avq.envs.layouts import LayoutSpec, load_layout
+from avq.envs.layouts import Layout, LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
 
 __all__ = ["ReproduceRun", "train_maze_run", "reproduce"]
@@ -109,7 +109,17 @@ def reproduce(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file; give a directory for the results")
-    (out / "models").mkdir(parents=True, exist_ok=True)
+    # The lock is beside ``out`` (hidden, ``.NAME.lock``), so that it holds whatever happens to ``out`` itself.
+    make_dirs(out.parent)
+    beside = out.absolute()
+    with hold_directory(out, beside.parent / f".{beside.name}.lock"):
+        return _reproduce(lay, layout, seeds, trials, agents, start, out, n_jobs, progress, log)
+
+
+def _reproduce(lay: Layout, layout: LayoutSpec, seeds: Sequence[int], trials: int, agents: Sequence[str], start: str,
+               out: Path, n_jobs: int | None, progress: bool, log: Callable[[str], None] | None) -> dict[str, Any]:
+    """:func:`reproduce` once its arguments are checked and ``out`` is held."""
+    make_dirs(out / "models")
     layout_arg: LayoutSpec = list(lay.rows)
     jobs = [(name, int(seed)) for name in agents for seed in seeds]
     n_jobs = n_jobs or min(len(jobs), os.cpu_count() or 1)
