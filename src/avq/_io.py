@@ -1,14 +1,114 @@
-"""Files avq writes: whole files atomically, per-episode CSV rows by appending complete lines."""
+"""Files avq writes: whole files atomically, per-episode CSV rows by appending complete lines.
+
+A write that fails raises :class:`WriteError`, which names the path the caller
+gave (never a temporary file), the cause and what to do; :func:`hold_directory`
+keeps two avq processes out of one output directory.
+"""
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "ProgressLog"]
+__all__ = ["atomic_write_bytes", "make_dirs", "hold_directory", "ProgressLog", "WriteError"]
+
+
+class WriteError(OSError):
+    """A file or directory could not be written: the message names the path, the cause and a fix.
+
+    An ``OSError`` with the ``errno`` and ``strerror`` of the failure; its ``filename``
+    is the path the caller gave.
+    """
+
+    def __init__(self, path: str | os.PathLike, cause: OSError) -> None:
+        super().__init__(cause.errno, cause.strerror, str(path))
+        self.message = f"cannot write {path}: {_why(Path(path), cause)}"
+
+    def __str__(self) -> str:
+        return self.message
+
+
+def _why(path: Path, cause: OSError) -> str:
+    """The cause of a failed write in words, with what to do about it."""
+    above = [p for p in (path, *path.parents) if os.path.exists(p)]  # (os.path: False on any error)
+    where = next((p for p in above if os.path.isdir(p)), Path("."))  # the deepest existing directory
+    blocker = next((p for p in above if not os.path.isdir(p)), None)
+    if cause.errno in (errno.ENOTDIR, errno.EEXIST) and blocker is not None:  # a file where a directory must be
+        return f"{blocker} is a file, not a directory; choose a path that is not under a file"
+    if cause.errno in (errno.EACCES, errno.EPERM):
+        return (f"no permission to write in {where}; choose a directory you can write to, "
+                "or change its permissions")
+    if cause.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
+        return f"no space left on the device (or over the disk quota) of {where}; free some space"
+    if cause.errno == errno.EROFS:
+        return f"{where} is on a read-only file system; choose another location"
+    if cause.errno == errno.EISDIR:
+        return f"{path} is a directory; give a file name"
+    return f"{cause.strerror or cause}"
+
+
+@contextmanager
+def _writing(path: str | os.PathLike) -> Iterator[None]:
+    """Turn an ``OSError`` of the block into a :class:`WriteError` naming ``path``."""
+    try:
+        yield
+    except WriteError:
+        raise
+    except OSError as exc:
+        raise WriteError(path, exc) from exc
+
+
+def make_dirs(path: str | os.PathLike) -> Path:
+    """Create directory ``path`` and its parents if missing (a :class:`WriteError` if impossible)."""
+    path = Path(path)
+    with _writing(path):
+        path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+@contextmanager
+def hold_directory(directory: str | os.PathLike, lock_file: str | os.PathLike | None = None) -> Iterator[None]:
+    """Hold ``directory`` for this process while the block runs; refuse if another process holds it.
+
+    The hold is a lock on ``lock_file`` (default ``directory/.avq.lock``, which
+    stays) taken with ``filelock``: the operating system releases it when the
+    process ends, however it ends, so a killed run never leaves a directory
+    stuck. The file records the holder's pid, which the refusal names.
+
+    Raises:
+        ValueError: another process holds the directory.
+        WriteError: the lock file cannot be created.
+    """
+    from filelock import FileLock, Timeout
+
+    directory = Path(directory)
+    lock_file = Path(lock_file) if lock_file is not None else directory / ".avq.lock"
+    lock = FileLock(lock_file, timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:  # (an OSError too: caught first)
+        try:
+            pid = lock_file.read_text(encoding="ascii").strip()
+        except (OSError, UnicodeDecodeError):
+            pid = ""
+        holder = f" (pid {pid})" if pid.isdigit() else ""
+        raise ValueError(f"{directory} is in use by another avq process{holder}; wait until it ends, "
+                         "or choose another --out") from None
+    except OSError as exc:
+        raise WriteError(lock_file.parent, exc) from exc  # (the directory, not the hidden file)
+    try:
+        try:
+            lock_file.write_text(f"{os.getpid()}\n", encoding="ascii")
+        except OSError:
+            pass  # the pid is for messages only (and Windows refuses writes to a locked file)
+        yield
+    finally:
+        lock.release()
 
 
 def _umask() -> int:
@@ -22,21 +122,23 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
     The bytes go to a temporary file in the same directory, are flushed to disk,
     and the file is renamed over ``path`` (an atomic step on POSIX and Windows).
+    A failure raises :class:`WriteError` naming ``path``.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with _writing(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual permissions
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
 
 
 def _format(value: Any) -> str:
@@ -84,12 +186,13 @@ class ProgressLog:
         if self._rows == n:
             return
         text = "".join(",".join(_format(r.get(k, "")) for k in self.columns) + "\n" for r in history[self._rows : n])
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
-        try:
-            data = text.encode()
-            while data:  # one write in practice; loop only on a short write
-                data = data[os.write(fd, data):]
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        with _writing(self.path):
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+            try:
+                data = text.encode()
+                while data:  # one write in practice; loop only on a short write
+                    data = data[os.write(fd, data):]
+                os.fsync(fd)
+            finally:
+                os.close(fd)
         self._rows = n

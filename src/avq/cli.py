@@ -7,8 +7,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 from typing import Sequence
+
+from avq._io import WriteError
 
 __all__ = ["main"]
 
@@ -173,6 +176,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
             summary = resume_train(args.resume, progress=_progress(args))
         except KeyboardInterrupt:
             return _interrupted(args.resume)
+        except WriteError as exc:
+            raise _stopped_by(exc, args.resume) from None
         if summary.get("already_finished"):
             print(f"{args.resume} is already finished; nothing to do")
         _print_train_summary(summary)
@@ -203,6 +208,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         )
     except KeyboardInterrupt:
         return _interrupted(out)
+    except WriteError as exc:
+        raise _stopped_by(exc, out) from None
     _print_train_summary(summary)
     if recorder is not None:
         from avq.plotting import animate_partition
@@ -234,8 +241,8 @@ def _partition_recorder(env_id: str, agent: str, env_kwargs: dict):
     return PartitionRecorder(make_env(env_id, env_kwargs))
 
 
-def _interrupted(run_dir: str) -> int:
-    """Ctrl-C during a run: say where it can continue from."""
+def _how_to_continue(run_dir: str) -> str:
+    """Where a stopped run can continue from, and the command that continues it."""
     from avq.agents.base import load
 
     checkpoint = os.path.join(run_dir, "checkpoint.zip")
@@ -245,9 +252,21 @@ def _interrupted(run_dir: str) -> int:
             where = f"at its checkpoint after episode {load(checkpoint).num_episodes}"
         except (ValueError, OSError):
             pass
-    print(f"avq: interrupted; the run stopped {where}. Continue it with: avq train --resume {run_dir}",
-          file=sys.stderr)
+    return f"the run stopped {where}. Continue it with: avq train --resume {run_dir}"
+
+
+def _interrupted(run_dir: str) -> int:
+    """Ctrl-C during a run: say where it can continue from."""
+    print(f"avq: interrupted; {_how_to_continue(run_dir)}", file=sys.stderr)
     return 130
+
+
+def _stopped_by(exc: WriteError, run_dir: str) -> Exception:
+    """A failed write (a full disk, say): once the run has begun, also say how to continue it."""
+    begun, finished = (os.path.isfile(os.path.join(run_dir, name)) for name in ("config.yml", "summary.json"))
+    if not begun or finished:
+        return exc  # not a run that this write stopped
+    return UsageError(f"{exc}; {_how_to_continue(run_dir)}")
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -280,7 +299,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from avq.sweep import report, sweep
+    from avq.sweep import SweepInterrupted, report, sweep
 
     if args.target[0] == "report":
         if len(args.target) != 2:
@@ -301,8 +320,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                          "(or 'avq sweep report DIR' to rank a finished sweep)")
     if not os.path.isfile(args.target[0]):
         raise UsageError(f"no such sweep config: {args.target[0]}")
-    rows = sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
-                 progress=_progress(args))
+    try:
+        rows = sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
+                     progress=_progress(args), log=print)
+    except SweepInterrupted as stop:
+        again = ["avq", "sweep", args.target[0], "--out", args.out]
+        for flag, value in (("--backend", None if args.backend == "local" else args.backend),
+                            ("--address", args.address), ("--jobs", args.jobs)):
+            again += [flag, str(value)] if value is not None else []
+        print(f"avq: interrupted; {stop.finished} of {stop.total} trials finished and are kept in {args.out}. "
+              f"Continue the sweep with: {shlex.join(again)}", file=sys.stderr)
+        return 130
     failed = [r for r in rows if r["status"] != "ok"]
     written = [os.path.join(args.out, name) for name in ("results.csv", "curves.png")
                if os.path.exists(os.path.join(args.out, name))]
@@ -349,7 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
         "train",
         help="train one agent on any registered Gymnasium environment",
         description="Train an agent and write config.yml, progress.csv, checkpoint.zip, model.zip and summary.json "
-        "into --out. A stopped run continues exactly with --resume DIR.",
+        "into --out. A stopped run continues exactly with --resume DIR. Another avq process writing into --out "
+        "makes it refuse.",
     )
     tr.add_argument("--env", help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0")
     from avq.agents.registry import AGENTS
@@ -377,8 +406,8 @@ def build_parser() -> argparse.ArgumentParser:
         "sweep",
         help="run a grid of configurations x seeds, locally or on a Ray or Dask cluster",
         description="avq sweep CONFIG.yml --out DIR runs every trial not yet finished in DIR and writes "
-        "DIR/results.csv and DIR/curves.png (exit code 1 if a trial failed); "
-        "avq sweep report DIR ranks the configurations.",
+        "DIR/results.csv and DIR/curves.png (exit code 1 if a trial failed); the same command continues a "
+        "stopped sweep. avq sweep report DIR ranks the configurations.",
     )
     sw.add_argument("target", nargs="+", metavar="CONFIG.yml|report DIR",
                     help="the sweep's YAML config, or 'report' and a sweep directory")

@@ -15,7 +15,7 @@ from typing import Any, Callable, Iterator, Sequence
 import gymnasium as gym
 import numpy as np
 
-from avq._io import atomic_write_bytes
+from avq._io import atomic_write_bytes, hold_directory, make_dirs
 from avq.agents.base import Callback
 from avq.agents.registry import AGENTS, make_agent
 from avq.envs.layouts import Layout, LayoutSpec, load_layout
@@ -160,13 +160,18 @@ def reproduce(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file; give a directory for the results")
+    # The lock is beside ``out`` (hidden, ``.NAME.lock``), so that it holds while ``out`` is replaced.
     _check_replaceable(out)
-    t0 = time.perf_counter()
-    with _replacing(out) as staging:
-        summary = _run_and_write(staging, lay, layout, seeds, trials, agents, start, n_jobs, progress, log, animate)
-    if log is not None:
-        log(f"wrote {out}: {_listing(out)} ({time.perf_counter() - t0:.1f} s)")
-    return summary
+    make_dirs(out.parent)
+    beside = out.absolute()
+    with hold_directory(out, beside.parent / f".{beside.name}.lock"):
+        t0 = time.perf_counter()
+        with _replacing(out) as staging:
+            summary = _run_and_write(staging, lay, layout, seeds, trials, agents, start, n_jobs, progress, log,
+                                     animate)
+        if log is not None:
+            log(f"wrote {out}: {_listing(out)} ({time.perf_counter() - t0:.1f} s)")
+        return summary
 
 
 def _check_replaceable(out: Path) -> None:

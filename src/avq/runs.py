@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from avq._io import ProgressLog, atomic_write_bytes
+from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
 from avq._validate import check_int
 from avq.agents.base import PROGRESS_COLUMNS, Callback
 from avq.agents.registry import AGENTS, make_agent
@@ -60,6 +60,7 @@ def train(
     ``progress.csv`` (one row per episode) and ``checkpoint.zip`` every
     ``checkpoint_every`` episodes (so that :func:`resume_train` can continue a
     stopped run exactly), then ``model.zip`` and ``summary.json``. Returns the summary.
+    Refuses (``ValueError``) an ``out`` that holds a run or a sweep, or that another process is using.
     ``log`` gets one line before training: which defaults the agent took (``agent.defaults_used``).
     ``callback`` goes to ``learn`` (``callback(agent, record)`` after every episode).
     """
@@ -77,28 +78,32 @@ def train(
     out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file; give a directory for the run")
-    if (out / "model.zip").exists():
-        raise ValueError(f"{out} already holds a trained run; choose another --out")
-    if (out / "checkpoint.zip").exists():
-        raise ValueError(f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out")
-    if (out / "sweep.json").exists():
-        raise ValueError(f"{out} holds a sweep; choose another --out for the run")
-    out.mkdir(parents=True, exist_ok=True)
-    agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
-    config = {
-        "env": env_id,
-        "env_kwargs": dict(env_kwargs or {}),
-        "agent": agent,
-        "params": _plain(agent_params),
-        "seed": seed,
-        **({"episodes": int(episodes)} if episodes is not None else {"timesteps": int(timesteps)}),
-        "checkpoint_every": int(checkpoint_every),
-        "avq_version": __version__,
-    }
-    atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
-    if log is not None:
-        log(str(model.defaults_used))
-    return _run_to_the_end(model, out, config, progress, callback)
+    with hold_directory(make_dirs(out)):
+        if (out / "model.zip").exists():
+            raise ValueError(f"{out} already holds a trained run; choose another --out")
+        if (out / "checkpoint.zip").exists():
+            raise ValueError(f"{out} holds a stopped run; continue it with 'avq train --resume {out}', "
+                             "or choose another --out")
+        if (out / "sweep.json").exists():
+            raise ValueError(f"{out} holds a sweep; choose another --out for the run")
+        if (out / "config.yml").exists():
+            raise ValueError(f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
+                             f"with 'avq train --resume {out}' (from episode 0), or choose another --out")
+        agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
+        config = {
+            "env": env_id,
+            "env_kwargs": dict(env_kwargs or {}),
+            "agent": agent,
+            "params": _plain(agent_params),
+            "seed": seed,
+            **({"episodes": int(episodes)} if episodes is not None else {"timesteps": int(timesteps)}),
+            "checkpoint_every": int(checkpoint_every),
+            "avq_version": __version__,
+        }
+        atomic_write_bytes(out / "config.yml", yaml.safe_dump(config, sort_keys=False).encode())
+        if log is not None:
+            log(str(model.defaults_used))
+        return _run_to_the_end(model, out, config, progress, callback)
 
 
 def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str, Any]:
@@ -110,29 +115,30 @@ def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str,
     """
     out = Path(run_dir)
     config = read_run_config(out)
-    if (out / "model.zip").exists() and (out / "summary.json").exists():
+    if (out / "model.zip").exists() and (out / "summary.json").exists():  # (read only: no need to hold it)
         return {**json.loads((out / "summary.json").read_text(encoding="utf-8")), "already_finished": True}
-    for key in ("episodes", "timesteps"):
-        if config.get(key) is not None:
-            check_int(f"{out / 'config.yml'}: {key}", config[key], 1)
-    if (config.get("episodes") is None) == (config.get("timesteps") is None):
-        raise ValueError(f"{out / 'config.yml'}: needs exactly one of 'episodes' or 'timesteps'")
-    for leftover in out.glob(".*.tmp"):  # temporary files of writes that a kill interrupted
-        leftover.unlink()
-    env = make_env(config["env"], config.get("env_kwargs"))
-    params = _recorded_params(config)
-    checkpoint = out / "checkpoint.zip"
-    if checkpoint.exists():
-        from avq.agents.base import load
+    with hold_directory(out):
+        for key in ("episodes", "timesteps"):
+            if config.get(key) is not None:
+                check_int(f"{out / 'config.yml'}: {key}", config[key], 1)
+        if (config.get("episodes") is None) == (config.get("timesteps") is None):
+            raise ValueError(f"{out / 'config.yml'}: needs exactly one of 'episodes' or 'timesteps'")
+        for leftover in out.glob(".*.tmp"):  # temporary files of writes that a kill interrupted
+            leftover.unlink()
+        env = make_env(config["env"], config.get("env_kwargs"))
+        params = _recorded_params(config)
+        checkpoint = out / "checkpoint.zip"
+        if checkpoint.exists():
+            from avq.agents.base import load
 
-        model = load(checkpoint, env=env)
-        expected = make_agent(config["agent"], env, seed=config.get("seed"), **params)
-        if type(model) is not type(expected) or model.get_params() != expected.get_params():
-            raise ValueError(f"{checkpoint} does not belong to this run: its agent or parameters differ from "
-                             f"{out / 'config.yml'}")
-    else:
-        model = make_agent(config["agent"], env, seed=config.get("seed"), **params)
-    return _run_to_the_end(model, out, config, progress)
+            model = load(checkpoint, env=env)
+            expected = make_agent(config["agent"], env, seed=config.get("seed"), **params)
+            if type(model) is not type(expected) or model.get_params() != expected.get_params():
+                raise ValueError(f"{checkpoint} does not belong to this run: its agent or parameters differ from "
+                                 f"{out / 'config.yml'}")
+        else:
+            model = make_agent(config["agent"], env, seed=config.get("seed"), **params)
+        return _run_to_the_end(model, out, config, progress)
 
 
 def _recorded_params(config: dict[str, Any]) -> dict[str, Any]:

@@ -27,35 +27,58 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from avq._io import atomic_write_bytes
+from avq._io import atomic_write_bytes, hold_directory, make_dirs
 from avq.sweep.backends import BACKENDS, _RUNNERS, _check_backend
 from avq.sweep.config import METRICS, SweepConfig, _is_int, read_sweep_config
 from avq.sweep.results import _plot_curves, _rows, _write_results, report
 from avq.sweep.trial import Trial, _trial_kwargs, plan_trials, run_trial  # noqa: F401  (Trial: importable here, as before)
 
-__all__ = ["SweepConfig", "read_sweep_config", "plan_trials", "run_trial", "sweep", "report", "BACKENDS",
-           "METRICS"]
+__all__ = ["SweepConfig", "read_sweep_config", "plan_trials", "run_trial", "sweep", "report", "SweepInterrupted",
+           "BACKENDS", "METRICS"]
+
+
+def _summary_path(out: Path, trial: Trial) -> Path:
+    """The trial's ``summary.json``, written last: once it exists, the trial is finished."""
+    return out / "trials" / trial.dirname / "summary.json"
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a sweep: ``finished`` of its ``total`` trials are done and kept in ``out``.
+
+    A ``KeyboardInterrupt``, raised after ``results.csv`` was written; running the
+    sweep again into ``out`` runs only the trials not finished.
+    """
+
+    def __init__(self, out: Path, finished: int, total: int) -> None:
+        super().__init__(f"{finished} of {total} trials finished, kept in {out}")
+        self.out, self.finished, self.total = out, finished, total
 
 
 def sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | os.PathLike, *,
           backend: str = "local", address: str | None = None, jobs: int | None = None,
-          progress: bool = True) -> list[dict[str, Any]]:
+          progress: bool = True, log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Run every trial of a sweep that has not finished yet; write ``results.csv`` and ``curves.png``.
 
     Args:
         config: A YAML file, a dict with the same keys, or a :class:`avq.sweep.SweepConfig`.
         out: The sweep's directory (created). Finished trials found there are skipped.
+            Another process running a sweep (or a run) in ``out`` makes this one refuse.
         backend: ``local`` (joblib processes), ``ray`` or ``dask``.
         address: The cluster to use (``ray``: as for ``ray.init``; ``dask``: the scheduler's address).
             Without one, a local cluster with ``jobs`` workers is started and stopped.
         jobs: Parallel workers for ``local`` and for a cluster started here (default: the CPU count).
         progress: Show a progress bar over trials.
+        log: Gets one line when finished trials found in ``out`` are kept.
 
     Returns:
         One row per trial, as written to ``results.csv`` (``status`` is ``ok`` or ``failed``).
+
+    Raises:
+        SweepInterrupted: on Ctrl-C, with the count of finished trials.
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
@@ -68,44 +91,50 @@ def sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | o
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out} is a file; give a directory for the sweep")
-    if (out / "config.yml").exists() and not (out / "sweep.json").exists():
-        raise ValueError(f"{out} holds a run of 'avq train'; choose another --out for the sweep")
-    saved = out / "sweep.json"
-    if saved.exists():
-        before = json.loads(saved.read_text(encoding="utf-8"))
-        if before != json.loads(json.dumps(cfg.as_dict())):
-            raise ValueError(f"{out} holds a different sweep (see {saved}); choose another --out")
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(saved, json.dumps(cfg.as_dict(), indent=2).encode())
-    trials = plan_trials(cfg)
-    results: dict[int, dict[str, Any]] = {}
-    todo = []
-    for t in trials:
-        summary = out / "trials" / t.dirname / "summary.json"
-        if summary.exists():
-            results[t.index] = {"status": "ok", **json.loads(summary.read_text(encoding="utf-8"))}
-        else:
-            todo.append(t)
-    n_jobs = int(jobs or os.cpu_count() or 1)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    with hold_directory(make_dirs(out)):
+        if (out / "config.yml").exists() and not (out / "sweep.json").exists():
+            raise ValueError(f"{out} holds a run of 'avq train'; choose another --out for the sweep")
+        saved = out / "sweep.json"
+        if saved.exists():
+            before = json.loads(saved.read_text(encoding="utf-8"))
+            if before != json.loads(json.dumps(cfg.as_dict())):
+                raise ValueError(f"{out} holds a different sweep (see {saved}); choose another --out")
+        atomic_write_bytes(saved, json.dumps(cfg.as_dict(), indent=2).encode())
+        trials = plan_trials(cfg)
+        results: dict[int, dict[str, Any]] = {}
+        todo = []
+        for t in trials:
+            summary = _summary_path(out, t)
+            if summary.exists():
+                results[t.index] = {"status": "ok", **json.loads(summary.read_text(encoding="utf-8"))}
+            else:
+                todo.append(t)
+        if results and log is not None:
+            log(f"kept {len(results)} finished trial{'s' if len(results) != 1 else ''} of {len(trials)} in {out}; "
+                f"running the other {len(todo)}")
+        n_jobs = int(jobs or os.cpu_count() or 1)
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(trials), initial=len(results), unit="trial", desc=f"sweep ({backend})")
-    counts = {"done": len(results), "failed": 0, "skipped": len(results)}
-    try:
-        if todo:
-            kwargs = [_trial_kwargs(cfg, t, out) for t in todo]
-            for k, result in _RUNNERS[backend](kwargs, min(n_jobs, len(todo)), address):
-                results[todo[k].index] = result
-                counts["done" if result["status"] == "ok" else "failed"] += 1
-                if bar is not None:
-                    bar.set_postfix(completed=counts["done"], failed=counts["failed"], refresh=False)
-                    bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
-        rows = _rows(cfg, trials, results)
-        _write_results(out, cfg, rows)
-    _plot_curves(out, cfg, trials, results)
-    return rows
+            bar = tqdm(total=len(trials), initial=len(results), unit="trial", desc=f"sweep ({backend})")
+        counts = {"done": len(results), "failed": 0, "skipped": len(results)}
+        try:
+            if todo:
+                kwargs = [_trial_kwargs(cfg, t, out) for t in todo]
+                for k, result in _RUNNERS[backend](kwargs, min(n_jobs, len(todo)), address):
+                    results[todo[k].index] = result
+                    counts["done" if result["status"] == "ok" else "failed"] += 1
+                    if bar is not None:
+                        bar.set_postfix(completed=counts["done"], failed=counts["failed"], refresh=False)
+                        bar.update(1)
+        except KeyboardInterrupt:  # (trials that finished while it stopped count too: they are kept)
+            finished = sum(_summary_path(out, t).exists() for t in trials)
+            raise SweepInterrupted(out, finished, len(trials)) from None
+        finally:
+            if bar is not None:
+                bar.close()
+            rows = _rows(cfg, trials, results)
+            _write_results(out, cfg, rows)
+        _plot_curves(out, cfg, trials, results)
+        return rows

@@ -7,6 +7,10 @@ with ``status`` ``failed``, so one failure stops nothing.
 
 from __future__ import annotations
 
+import functools
+import os
+import threading
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -58,11 +62,39 @@ def _run_local(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> 
     from joblib import Parallel, delayed
 
     yield from Parallel(n_jobs=n_jobs, return_as="generator_unordered")(
-        delayed(_indexed_trial)(k, kw) for k, kw in enumerate(jobs))
+        delayed(_local_trial)(k, kw, os.getpid()) for k, kw in enumerate(jobs))
 
 
 def _indexed_trial(k: int, kwargs: dict[str, Any]) -> tuple[int, dict[str, Any]]:
     return k, _safe_trial(kwargs)
+
+
+def _local_trial(k: int, kwargs: dict[str, Any], sweep_pid: int) -> tuple[int, dict[str, Any]]:
+    """:func:`_indexed_trial` in a joblib worker, which ends itself when the sweep's process is gone."""
+    _exit_with(sweep_pid)
+    return _indexed_trial(k, kwargs)
+
+
+@functools.cache
+def _exit_with(parent: int) -> None:
+    """End this process within a second of the end of ``parent``, its parent process (once per process).
+
+    joblib's workers outlive a sweep killed with SIGKILL: they finish their trial and
+    then wait for work up to their idle timeout (300 s). A daemon thread polls
+    ``os.getppid()``, which changes when the parent dies (POSIX gives orphans a new
+    parent), and ends the process. The thread needs the GIL, which a compiled
+    training loop holds, so a worker inside one ends when that chunk returns.
+    On Windows, where a process keeps its parent's id, this does nothing.
+    """
+    if os.getppid() != parent:  # a worker not started by the sweep's process: nothing to watch
+        return
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)  # files are written atomically, so ending here loses only the trial in progress
+
+    threading.Thread(target=watch, name="avq-exit-with-sweep", daemon=True).start()
 
 
 def _run_ray(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> Iterator[tuple[int, dict]]:
