@@ -186,8 +186,8 @@ class BaseAgent:
     def _refuse_non_finite(self, obs: Any, r: Any, step: int) -> None:
         what = f"reward {r!r}" if not math.isfinite(r) else f"observation {np.asarray(obs).tolist()!r}"
         raise NotFiniteError(f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
-                         "avq learns only from finite observations and rewards (check the environment, "
-                         "or wrap it to end the episode instead)")
+                             "avq learns only from finite observations and rewards (check the environment, "
+                             "or wrap it to end the episode instead)")
 
     # -- learning -----------------------------------------------------------------------
     def learn(
