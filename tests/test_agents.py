@@ -150,8 +150,11 @@ def test_avq_scale_from_bounds_and_unbounded_dimension_error():
     agent = AVQSarsa(maze(), seed=0)
     assert agent._scale.tolist() == [13.0, 11.0]
     with pytest.raises(ValueError, match="dimension 1"):
-        AVQSarsa(gym.make("CartPole-v1"))
+        AVQSarsa(gym.make("CartPole-v1"), scale=None)
     AVQSarsa(gym.make("CartPole-v1"), scale=[1.0, 1.0, 1.0, 1.0])
+    AVQSarsa(gym.make("CartPole-v1"))  # scale="auto": estimated for the unbounded dimensions
+    with pytest.raises(ValueError, match="scale must be 'auto', None, a number > 0 or one per dimension, not 'atuo'"):
+        AVQSarsa(gym.make("CartPole-v1"), scale="atuo")
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -354,9 +357,9 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     assert general.defaults_used.key == "*" and general.defaults_used.explicit == {"alpha": 0.2}
     assert str(general.defaults_used).endswith("DEFAULTS['avq']['*']); explicit: alpha=0.2")
     assert general.get_params()["alpha"] == 0.2 and general.get_params()["merge_age"] == 5
-    # scale=None is kept as given; the scale in force (the observation bounds') is scale_.
+    # scale="auto" is kept as given; the scale in force (here the observation bounds') is scale_.
     space = general.env.observation_space
-    assert general.get_params()["scale"] is None
+    assert general.get_params()["scale"] == "auto"
     assert np.array_equal(general.scale_, np.asarray(space.high, np.float64) - np.asarray(space.low, np.float64))
     assert np.array_equal(maze.scale_, [1.0, 1.0]) and maze.get_params()["scale"] == 1.0
     assert AVQSarsa("avq/GridMaze-v0").defaults_used is None  # built directly: the signature's defaults

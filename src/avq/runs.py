@@ -13,7 +13,7 @@ import numpy as np
 
 from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
 from avq._validate import check_int
-from avq.agents.base import PROGRESS_COLUMNS, Callback
+from avq.agents.base import PROGRESS_COLUMNS, Callback, NotFiniteError
 from avq.agents.registry import AGENTS, make_agent
 from avq.evaluation import evaluate_maze
 
@@ -167,7 +167,14 @@ def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: boo
         left = {"total_episodes": max(0, int(config["episodes"]) - model.num_episodes)}
     else:
         left = {"total_timesteps": max(0, int(config["timesteps"]) - model.num_timesteps)}
-    model.learn(**left, progress_bar=progress, checkpoint_every=every, checkpoint_dir=out, callback=callback)
+    try:
+        model.learn(**left, progress_bar=progress, checkpoint_every=every, checkpoint_dir=out, callback=callback)
+    except NotFiniteError as exc:  # (learn checkpoints at every multiple of `every`, and writes nothing else)
+        done = model.num_episodes - model.num_episodes % every
+        kept = (f"its checkpoint after episode {done} and progress.csv up to it are intact" if done else
+                f"it had no checkpoint yet (the first comes after episode {every})")
+        raise NotFiniteError(f"{exc}; the run in {out} stopped there: {kept}; once the environment is fixed, "
+                             f"continue it with 'avq train --resume {out}'") from None
     ProgressLog(out / "progress.csv", PROGRESS_COLUMNS).sync(model.history_)
     model.save(out / "model.zip")
     hist = model.episode_history()

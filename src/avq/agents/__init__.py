@@ -8,7 +8,7 @@ from avq.agents import registry, save_util  # noqa: F401  (public: the names and
 from avq.agents.actions import ActionCodebookSarsa
 from avq.agents.avq_plan import PlanningAVQ
 from avq.agents.avq_sarsa import AVQSarsa
-from avq.agents.base import BaseAgent
+from avq.agents.base import BaseAgent, NotFiniteError
 from avq.agents.grid import GridSarsa
 from avq.agents.registry import AGENTS, make_agent
 from avq.agents.save_util import load
@@ -17,4 +17,4 @@ from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
 __all__ = ["AVQSarsa", "PlanningAVQ", "TabularSarsa", "PrioritizedSweeping", "GridSarsa", "TileSarsa", "ActionCodebookSarsa",
-           "BaseAgent", "AGENTS", "make_agent", "load", "registry", "save_util"]
+           "BaseAgent", "NotFiniteError", "AGENTS", "make_agent", "load", "registry", "save_util"]

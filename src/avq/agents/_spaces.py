@@ -1,4 +1,5 @@
-"""Observation bounds: the finite box an agent scales, bins or tiles (``obs_bounds``)."""
+"""Observation bounds and the metric's scale: the finite box an agent scales, bins or tiles (``obs_bounds``),
+and for ``AVQSarsa``'s ``scale="auto"`` the scale of unbounded dimensions estimated from observations."""
 
 from __future__ import annotations
 
@@ -7,7 +8,31 @@ from typing import Any, Sequence
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["resolve_bounds", "resolve_scale", "normalize_obs_bounds", "check_box_discrete"]
+__all__ = ["resolve_bounds", "resolve_scale", "auto_scale", "RunningSpread", "AUTO_SCALE_STDS",
+           "normalize_obs_bounds", "check_box_discrete"]
+
+#: ``scale="auto"`` takes this many standard deviations of the observations seen as the range of a
+#: dimension without finite bounds: the width of ±2σ, which holds 95% of a normal distribution (and
+#: about what ``high - low`` is to a uniform one, √12 ≈ 3.5σ).
+AUTO_SCALE_STDS = 4.0
+
+
+def _given_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``(low, high)`` per dimension of a 1-D ``Box`` space, overridden by ``obs_bounds``; maybe infinite."""
+    low = np.asarray(space.low, dtype=np.float64).ravel().copy()  # type: ignore[attr-defined]
+    high = np.asarray(space.high, dtype=np.float64).ravel().copy()  # type: ignore[attr-defined]
+    n = low.shape[0]
+    if obs_bounds is not None:
+        entries = normalize_obs_bounds(obs_bounds)
+        if len(entries) != n:
+            raise ValueError(
+                f"obs_bounds must have {n} entries (one per observation dimension), not {len(entries)}: "
+                f"{obs_bounds!r}; give a (low, high) per dimension, None for those whose own bounds are fine"
+            )
+        for d, entry in enumerate(entries):
+            if entry is not None:
+                low[d], high[d] = entry
+    return low, high
 
 
 def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -22,16 +47,8 @@ def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tup
         ValueError: ``obs_bounds`` is malformed, or a dimension ends up with an
             infinite or empty range (the message names the dimension).
     """
-    low = np.asarray(space.low, dtype=np.float64).ravel().copy()  # type: ignore[attr-defined]
-    high = np.asarray(space.high, dtype=np.float64).ravel().copy()  # type: ignore[attr-defined]
+    low, high = _given_bounds(space, obs_bounds)
     n = low.shape[0]
-    if obs_bounds is not None:
-        entries = normalize_obs_bounds(obs_bounds)
-        if len(entries) != n:
-            raise ValueError(f"obs_bounds must have {n} entries (one per observation dimension), not {len(entries)}")
-        for d, entry in enumerate(entries):
-            if entry is not None:
-                low[d], high[d] = entry
     for d in range(n):
         if not (np.isfinite(low[d]) and np.isfinite(high[d])):
             raise ValueError(
@@ -42,6 +59,62 @@ def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tup
         if not high[d] > low[d]:
             raise ValueError(f"observation dimension {d} has bounds [{low[d]}, {high[d]}]; high must exceed low")
     return low, high
+
+
+def auto_scale(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
+    """``scale="auto"`` before any observation: ``(scale, estimated)``.
+
+    ``scale`` is ``high - low`` where the bounds (``obs_bounds`` or the space's) are finite, and 1 where
+    they are not; ``estimated`` marks the latter, whose scale is then estimated from the observations
+    (:class:`RunningSpread`).
+
+    Raises:
+        ValueError: ``obs_bounds`` is malformed (:func:`normalize_obs_bounds`, and one entry per dimension);
+            a space whose finite bounds have ``high <= low``.
+    """
+    low, high = _given_bounds(space, obs_bounds)
+    estimated = ~(np.isfinite(low) & np.isfinite(high))
+    scale = np.where(estimated, 1.0, high - low)
+    bad = np.flatnonzero(~estimated & ~(scale > 0))
+    if bad.size:
+        d = int(bad[0])
+        raise ValueError(f"observation dimension {d} has bounds [{low[d]}, {high[d]}]; high must exceed low")
+    return scale, estimated
+
+
+class RunningSpread:
+    """The mean and standard deviation per dimension of the first ``limit`` observations, kept as they come
+    (Welford's algorithm: the same numbers as ``numpy.std`` up to rounding).
+
+    Attributes:
+        count: The observations counted so far (at most ``limit``).
+        mean: ``(n,)`` their mean.
+        m2: ``(n,)`` the sum of squared deviations from the mean.
+    """
+
+    def __init__(self, n: int, limit: int) -> None:
+        self.limit = limit
+        self.count = 0
+        self.mean = np.zeros(n)
+        self.m2 = np.zeros(n)
+
+    @property
+    def full(self) -> bool:
+        """True once ``limit`` observations were counted: later ones are not."""
+        return self.count >= self.limit
+
+    def add(self, x: Any) -> bool:
+        """Count the observation ``x`` (if not full); return whether later ones are still counted."""
+        if self.count < self.limit:
+            self.count += 1
+            delta = x - self.mean
+            self.mean += delta / self.count
+            self.m2 += delta * (x - self.mean)
+        return self.count < self.limit
+
+    def std(self) -> np.ndarray:
+        """``(n,)`` the standard deviation of the observations counted (ddof 0; zeros before any)."""
+        return np.sqrt(self.m2 / max(self.count, 1))
 
 
 def resolve_scale(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> np.ndarray:
@@ -90,8 +163,12 @@ def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] |
             lo, hi = (float(v) for v in entry)
         except (TypeError, ValueError):
             raise ValueError(f"obs_bounds[{d}] must be a (low, high) pair of numbers or None, not {entry!r}") from None
-        if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
-            raise ValueError(f"obs_bounds[{d}] must be finite with low < high, not {entry!r}")
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError(f"obs_bounds[{d}] is {entry!r}, which is not finite; give finite numbers (low, high), "
+                             "or None to keep the space's bounds for that dimension")
+        if not hi > lo:
+            raise ValueError(f"obs_bounds[{d}] is {entry!r}, whose low is not below its high; give (low, high) "
+                             "with low < high")
         out.append([lo, hi])
     return out
 

@@ -13,7 +13,8 @@ from numba.core.errors import TypingError
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
-from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
+from avq.agents._spaces import (AUTO_SCALE_STDS, RunningSpread, auto_scale, check_box_discrete, normalize_obs_bounds,
+                                resolve_scale)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -96,11 +97,17 @@ class AVQSarsa(BaseAgent):
             previous step's (same episode) by at least this much appends the new
             observation as a cell inheriting the current cell's profile, which ends the
             aggregate transition; None turns it off. For tasks without collisions.
-        scale: Per-dimension scale of the metric: a number or a sequence; None takes
-            ``high - low`` of the observation space (every bound must be finite).
-        obs_bounds: Instead of ``scale``: one ``(low, high)`` per dimension (None keeps the
-            space's) from which the scale ``high - low`` is taken; needed for unbounded
-            dimensions such as CartPole's velocities.
+        scale: Per-dimension scale of the metric. ``"auto"`` (the default): ``high - low`` of the
+            observation bounds (``obs_bounds`` or the space's) where they are finite, and where they
+            are not (CartPole's velocities, say) an estimate from the observations: ``AUTO_SCALE_STDS``
+            (4) standard deviations of the first ``scale_warmup`` observations, brought up to date at
+            the end of every episode until then, and fixed after (1 before the first episode ends,
+            and for as long as the dimension has not varied). A number or a sequence: that scale.
+            None: ``high - low`` of the bounds, every one of which must be finite.
+        scale_warmup: With ``scale="auto"``: the number of first observations (resets included)
+            from which the scale of the dimensions without finite bounds is estimated, >= 2.
+        obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the
+            scale ``high - low`` is taken, with ``scale="auto"`` or None.
         max_cells: Upper bound on the codebook size; at the bound, appends are refused
             (counted in the episode record as ``refused``).
         fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (as
@@ -119,8 +126,8 @@ class AVQSarsa(BaseAgent):
     and measured, are in one table, :data:`avq.agents.registry.DEFAULTS`.
 
     Attributes:
-        scale_: ``(n,)`` the metric's scale in force (``scale`` resolved; ``BaseAgent.get_params()``
-            keeps ``scale`` as given, None included).
+        scale_: ``(n,)`` the metric's scale in force (``scale`` resolved, and estimated where
+            ``scale="auto"`` estimates it; ``BaseAgent.get_params()`` keeps ``scale`` as given).
         codebook_: ``(p, n)`` codebook vectors.
         q_: ``(p, m)`` action values of the cells.
         n_cells: ``p``.
@@ -161,7 +168,8 @@ class AVQSarsa(BaseAgent):
         explore_bonus: float = 0.0,
         value_trigger: float | None = None,
         reward_trigger: float | None = None,
-        scale: float | Sequence[float] | None = None,
+        scale: float | Sequence[float] | str | None = "auto",
+        scale_warmup: int = 1000,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
         fused: bool = True,
@@ -196,9 +204,18 @@ class AVQSarsa(BaseAgent):
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.fused = check_bool("fused", fused)
         self.scale = scale
+        self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        self._scale = resolve_scale(self.env.observation_space, scale, self.obs_bounds)
+        space = self.env.observation_space
+        #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
+        self._estimated = np.zeros(space.shape[0], dtype=bool)
+        if isinstance(scale, str):
+            if scale != "auto":
+                raise ValueError(f"scale must be 'auto', None, a number > 0 or one per dimension, not {scale!r}")
+            self._scale, self._estimated = auto_scale(space, self.obs_bounds)
+        else:
+            self._scale = resolve_scale(space, scale, self.obs_bounds)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -206,9 +223,22 @@ class AVQSarsa(BaseAgent):
 
     @property
     def scale_(self) -> np.ndarray:
-        """The metric's scale in force, one number per dimension: ``scale``, or with ``scale=None`` the
-        ``high - low`` of the observation bounds (``obs_bounds`` or the space's)."""
+        """The metric's scale in force, one number per dimension: ``scale``, or the ``high - low`` of the
+        observation bounds (``obs_bounds`` or the space's), or with ``scale="auto"`` where those are not
+        finite the estimate from the observations so far."""
         return self._scale.copy()
+
+    def _update_scale(self) -> None:
+        """``scale="auto"``: the scale of each dimension without finite bounds becomes ``AUTO_SCALE_STDS``
+        standard deviations of the observations counted (where that is > 0). The codebook keeps its vectors
+        in observation units, so the metric re-expresses them; only the cached pairs of the merge pass depend
+        on it, and a new geometry version recomputes them."""
+        spread = AUTO_SCALE_STDS * self._spread.std()
+        new = np.where(self._estimated & (spread > 0), spread, self._scale)
+        if not np.array_equal(new, self._scale):
+            self._scale[:] = new
+            self._inv_scale[:] = 1.0 / new
+            self._S[core.GEOM] += 1
 
     # -- learned state ------------------------------------------------------------------
     @property
@@ -245,6 +275,8 @@ class AVQSarsa(BaseAgent):
             self.make_room)
         self._S[core.EPISODES] = self.num_episodes
         self._rec = np.zeros(core.N_R)
+        #: The observations counted for scale="auto" (none: no dimension is estimated).
+        self._spread = RunningSpread(len(self._scale), self.scale_warmup if self._estimated.any() else 0)
         self._direct: tuple = (None, None, None, None)  # see _advance
 
     def _allocate(self, cap: int) -> None:
@@ -328,7 +360,9 @@ class AVQSarsa(BaseAgent):
         return res
 
     def _begin_episode(self, obs: np.ndarray) -> None:
-        self._compiled(core.generic_start, self._as_obs(obs, 0), 0, 0.0)
+        x = self._as_obs(obs, 0)
+        self._compiled(core.generic_start, x, 0, 0.0)
+        self._spread.add(x)
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         # One compiled call per step (core.generic_step). Once a step has gone through Numba's dispatcher,
@@ -340,6 +374,7 @@ class AVQSarsa(BaseAgent):
         ended, ndarray = core.ENDED, np.ndarray
         # (the compiled function for the types of the last step that went through the dispatcher)
         direct, obs_dtype, obs_shape, r_type = self._direct
+        count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
         a = int(S[core.ACTION])
         n = 0
         while n < max_steps:
@@ -366,17 +401,22 @@ class AVQSarsa(BaseAgent):
             if a < ended:
                 a = self._compiled(kernel, obs, int(S[core.EP_STEPS]) + 1, r, r, collision, terminated, truncated)
                 fb, ib, raw, S = self._fb, self._ib, draws.raw, self._S
+            if count is not None and not count(obs):  # (an observation the kernel took: finite)
+                count = None
             if a == ended:
                 return n, True
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
+        if self._estimated.any():
+            self._update_scale()  # (before the merge pass, which then sees the new metric)
         core.end_episode(*self._state(), self._rec)
         return episode_record(*self._rec)
 
     # -- the fused loop (avq.agents._fused) ------------------------------------------------
     def _fused_runner(self):
-        maze = _fused.plan(self.env) if self.fused else None
+        # (The fused loops estimate no scale; the bounded mazes they run need none.)
+        maze = _fused.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
         args = _fused.maze_arguments(maze)
@@ -413,6 +453,9 @@ class AVQSarsa(BaseAgent):
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
         arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())  # (p, 2 + m)
+        # The metric in force, and what scale="auto" counted of the observations (mean and m2 as rows).
+        arrays.update(scale=self._scale.copy(), scale_spread=np.stack([self._spread.mean, self._spread.m2]))
+        meta["scale_count"] = self._spread.count
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -430,6 +473,17 @@ class AVQSarsa(BaseAgent):
             born = np.concatenate([born, np.zeros((len(q), self.n_actions), dtype=np.int64)], axis=1)
         if born.shape != (len(q), 2 + self.n_actions):
             raise ValueError(f"array born has shape {born.shape}; expected ({len(q)}, {2 + self.n_actions})")
+        scale = arrays.get("scale", self._scale)  # (files from before scale="auto": the scale of the parameters)
+        if scale.shape != (n,) or not (scale > 0).all() or not np.array_equal(scale[~self._estimated],
+                                                                             self._scale[~self._estimated]):
+            raise ValueError(f"array scale {scale.tolist()} does not fit the parameters' scale {self._scale.tolist()}")
+        spread = arrays.get("scale_spread", np.zeros((2, n)))
+        if spread.shape != (2, n):
+            raise ValueError(f"array scale_spread has shape {spread.shape}; expected (2, {n})")
+        self._spread.count = min(int(meta.get("scale_count", 0)), self._spread.limit)
+        self._spread.mean[:], self._spread.m2[:] = spread
+        self._scale[:] = scale
+        self._inv_scale[:] = 1.0 / scale
         p = len(q)
         self._ensure_capacity(p)
         self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born

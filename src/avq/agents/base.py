@@ -30,7 +30,7 @@ from avq.agents._td import decide
 from avq.agents._history import EpisodeHistory
 from avq._validate import check_bool, check_int, check_optional
 
-__all__ = ["BaseAgent", "EpisodeRecord", "Callback", "load"]
+__all__ = ["BaseAgent", "EpisodeRecord", "Callback", "NotFiniteError", "load"]
 
 #: One row of the per-episode record.
 EpisodeRecord = dict[str, Any]
@@ -42,6 +42,11 @@ Callback = Callable[["BaseAgent", EpisodeRecord], "bool | None"]
 RECORD_FIELDS = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
 #: The columns of ``progress.csv``.
 PROGRESS_COLUMNS = ("episode", "steps", "return", "n_cells", "appends", "merges", "wall_s")
+
+
+class NotFiniteError(ValueError):
+    """The environment gave an observation or a reward that is NaN or infinite; the message names the step and
+    the episode. Raised by :meth:`BaseAgent.learn` before the agent learns anything from that step."""
 
 
 def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any = 0, refused: Any = 0,
@@ -180,9 +185,9 @@ class BaseAgent:
 
     def _refuse_non_finite(self, obs: Any, r: Any, step: int) -> None:
         what = f"reward {r!r}" if not math.isfinite(r) else f"observation {np.asarray(obs).tolist()!r}"
-        raise ValueError(f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
-                         "avq learns only from finite observations and rewards (check the environment, "
-                         "or wrap it to end the episode instead)")
+        raise NotFiniteError(f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
+                             "avq learns only from finite observations and rewards (check the environment, "
+                             "or wrap it to end the episode instead)")
 
     # -- learning -----------------------------------------------------------------------
     def learn(

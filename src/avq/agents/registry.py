@@ -66,7 +66,8 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # AVQ for any task: collisions when the env reports them, plus the value-change trigger
     # (SPEC §3) so that tasks without collisions grow a partition too; a merge guard so that
     # value-triggered cells (copies of their parent) get time to differ before a merge pass.
-    # Metric scaled by the observation bounds (obs_bounds= for unbounded dimensions).
+    # Metric scaled by the observation bounds, and where they are not finite by the spread of the first
+    # observations (scale="auto"; obs_bounds= wins for the dimensions it bounds).
     # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
     #
     # On the grid maze, ``avq`` is ``avq-maze`` plus the cycle split and a decaying exploration rate (ε 0.2,
@@ -80,7 +81,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     "avq": {
         "*": dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
                   q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
-                  reward_trigger=None, scale=None),
+                  reward_trigger=None, scale="auto"),
         "avq/GridMaze-v0": {**_AVQ_MAZE, "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
                             "epsilon_min": 0.01},
         "avq/RobotMaze-v0": {**_AVQ_MAZE, "max_cells": 10_000},
@@ -178,8 +179,8 @@ SUMMARIES: dict[str, str] = {
            "decisions cycle between two cells (`cycle_split`) and a decaying exploration rate (`epsilon_decay`); on "
            "`avq/RobotMaze-v0`: `avq-maze` without its budget of cells. Elsewhere: growth on collisions when the task "
            "reports them and where an action value changes by more than `value_trigger`, a merge-age guard "
-           "(`merge_age`), and the metric scaled by the observation bounds (`scale` None; `obs_bounds=` for unbounded "
-           "dimensions).",
+           "(`merge_age`), and the metric scaled by the observation bounds, estimated from the observations where they "
+           "are not finite (`scale` \"auto\"; `obs_bounds=` wins).",
     "avq-maze": "AVQ beyond the paper, for tasks that report collisions: the paper's rules, plus a split where a cell's "
                 "greedy action hits a wall (`collision_split`), merging of nearest pairs (`merge_pairs`), and a budget "
                 "of cells (`max_cells`).",
