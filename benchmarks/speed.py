@@ -159,18 +159,15 @@ def reference_backups_per_second(n_states: int = 98, n_sweeps: int = 20_000) -> 
 
 def planner_backups_per_second(name: str, reps: int = 200) -> float:
     """Backups per second of the planner itself: the model of an agent trained on ``lau2002``, every state
-    queued and swept (``avq.agents._model.sweep``: the heap, the successor lists, the backup)."""
-    from avq.agents import _model
-
+    queued and swept (``Model.sweep``: the heap, the successor lists, the backup)."""
     agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=0).learn(total_episodes=500)
-    a = agent._model.a
-    n = int(a.C[_model.N_STATES])
+    model = agent.model_
     best = 0.0
     for _ in range(reps):
-        for s in range(n):
-            _model.push(a.heap, a.hpos, a.prio, a.C, s, 1.0 + s)
+        for s in range(model.n_states):
+            model.queue(s, 1.0 + s)
         t = time.perf_counter()
-        done = _model.sweep(*a, n)
+        done = model.sweep(model.n_states)
         best = max(best, done / (time.perf_counter() - t))
     return best
 

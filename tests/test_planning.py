@@ -353,3 +353,17 @@ def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
     assert agent.n_cells == 3 and agent.codebook_[2].tolist() == [1.0, 0.0]
     # The last transition starts in the new cell: (2, 0) -> 1, the episode's end.
     assert agent._mem_i[4].tolist() == [0, 2, -1]
+
+
+def test_the_models_public_queue_and_sweep_back_up_a_queued_state():
+    """``agent.model_``: queue a state by hand and sweep it; its values come from the model."""
+    agent = avq.make_agent("tabular-ps", gym.make("avq/GridMaze-v0"), seed=0).learn(total_episodes=20)
+    model = agent.model_
+    assert model.queued == 0 and model.n_states == agent.n_cells
+    before = model.backups
+    model.queue(0, 1.0)
+    model.queue(1, 2.0)
+    assert model.queued == 2
+    assert model.sweep(1) == 1 and model.queued == 1  # the budget: one backup
+    assert model.sweep(10) == 1 and model.queued == 0
+    assert model.backups == before + 2

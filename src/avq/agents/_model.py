@@ -141,6 +141,14 @@ class Model:
         self.reserve(states=1)
         return add_state(*self.a)
 
+    def queue(self, s: int, priority: float) -> None:
+        """Queue state ``s`` for a backup with ``priority`` (or raise its priority to it)."""
+        push(self.a.heap, self.a.hpos, self.a.prio, self.a.C, s, priority)
+
+    def sweep(self, budget: int) -> int:
+        """Back up at most ``budget`` queued states, highest priority first; return how many."""
+        return sweep(*self.a, budget)
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """The arrays in use, for a model file."""
         a, s, e = self.a, self.n_states, int(self.a.C[N_EDGES])

@@ -117,6 +117,13 @@ class PrioritizedSweeping(BaseAgent):
         return np.array(self._keys, dtype=np.float64).reshape(len(self._keys), -1)
 
     @property
+    def model_(self) -> _model.Model:
+        """The learned model and its planner's queue, for inspection: ``n_states``, ``backups``, ``queued``,
+        ``queue(s, priority)`` (queue a state for a backup) and ``sweep(budget)`` (back up at most ``budget``
+        queued states, highest priority first)."""
+        return self._model
+
+    @property
     def backups_(self) -> int:
         return self._model.backups
 
