@@ -51,11 +51,12 @@ class _Case:
 def _snapshot(agent: BaseAgent) -> dict[str, np.ndarray]:
     """Every learned array, the history without its wall-clock column, the counters, and the
     generator's next draw (taken from a twin, so the agent's stream is left as it was)."""
-    arrays = dict(agent._state_dict()[1])
+    meta, arrays = agent.state_dict()
+    arrays = dict(arrays)
     arrays["history"] = arrays["history"][:, :-1]
     arrays["counters"] = np.array([agent.num_timesteps, agent.num_episodes])
-    twin = np.random.Generator(type(agent._rng.bit_generator)())
-    twin.bit_generator.state = agent._rng.bit_generator.state
+    twin = np.random.Generator(getattr(np.random, meta["rng"]["bit_generator"])())
+    twin.bit_generator.state = meta["rng"]
     arrays["rng"] = np.array([twin.random()])
     return arrays
 

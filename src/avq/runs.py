@@ -188,7 +188,7 @@ def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: boo
         "env_steps": int(model.num_timesteps),
         "n_cells": int(model.n_cells), "size_unit": model.size_unit,
         "final_return_mean": float(np.mean(tail)) if len(tail) else None,
-        "wall_s": round(model._wall_s, 3),
+        "wall_s": round(model.wall_s_, 3),
         "out": str(out),
     }
     atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())

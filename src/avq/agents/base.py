@@ -375,7 +375,21 @@ class BaseAgent:
     def _obs_shape(self) -> tuple[int, ...]:
         return tuple(self.env.observation_space.shape or ())
 
+    @property
+    def wall_s_(self) -> float:
+        """Seconds spent in ``learn`` so far (kept in a saved agent)."""
+        return self._wall_s
+
     # -- saving -------------------------------------------------------------------------
+    def state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """What :meth:`save` writes: JSON-able counters and random states (``meta``), and the learned arrays.
+
+        Returns:
+            ``(meta, arrays)``; ``meta["rng"]`` is the state of the agent's generator
+            (``numpy.random.Generator.bit_generator.state``).
+        """
+        return self._state_dict()
+
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """JSON-able counters and the learned arrays; subclasses extend."""
         self._draws.sync()
