@@ -68,7 +68,7 @@ def test_checkpoints_land_every_n_episodes_with_the_progress_rows(tmp_path):
                 callback=lambda a, r: seen.append((r["episode"], (tmp_path / "checkpoint.zip").exists())))
     assert avq.load(tmp_path / "checkpoint.zip").num_episodes == 20
     rows = (tmp_path / "progress.csv").read_text().splitlines()
-    assert rows[0] == "episode,steps,return,n_cells,appends,merges,wall_s"
+    assert rows[0] == "episode,steps,return,n_cells,appends,merges,refused,decisions,wall_s"
     # Rows up to the last checkpoint, and at the end of learn the episodes after it too.
     assert [int(r.split(",")[0]) for r in rows[1:]] == list(range(1, 26))
     assert [int(r.split(",")[1]) for r in rows[1:]] == [h["steps"] for h in agent.history_]

@@ -151,8 +151,9 @@ class ProgressLog:
     :meth:`sync` appends the rows not yet in the file as complete lines in one
     write, then flushes them to disk. It first repairs the file: a last line cut
     short by a crash is dropped, and rows beyond ``len(history)`` (written after
-    the checkpoint being resumed) are removed by an atomic rewrite. So after any
-    ``sync`` the file holds exactly one row per episode of ``history``.
+    the checkpoint being resumed) are removed by an atomic rewrite; a file of an
+    avq of before some of the columns is written again from ``history``. So after
+    any ``sync`` the file holds exactly one row per episode of ``history``.
     """
 
     def __init__(self, path: str | os.PathLike, columns: Sequence[str]) -> None:
@@ -168,6 +169,11 @@ class ProgressLog:
             return 0
         data = self.path.read_bytes()
         if not data.startswith(self._header.encode()):
+            first = data[: data.find(b"\n")].decode(errors="replace").split(",")
+            if first[0] == self.columns[0] and set(first) < set(self.columns):
+                # Written by an avq of before some of the columns: made again from the history, which holds them.
+                atomic_write_bytes(self.path, self._header.encode())
+                return 0
             raise ValueError(f"{self.path}: not a progress file written by avq (header {self._header.strip()!r} expected)")
         complete = data[: data.rfind(b"\n") + 1]
         if len(complete) != len(data):

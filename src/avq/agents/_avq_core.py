@@ -48,12 +48,13 @@ ALPHA0, ALPHA_DECAY, ALPHA_MIN, BONUS = range(14, 18)
 N_P = 18
 # IP: int parameters
 REPLACING, MERGE_EVERY, MERGE_AGE, MAX_CELLS, MERGE_SAME_ACTION, COLLISION_SPLIT, MERGE_PAIRS, CYCLE_SPLIT = range(8)
-PRUNE_AFTER, MAKE_ROOM = 8, 9
-N_IP = 10
+PRUNE_AFTER, MAKE_ROOM, MAX_REPEAT = 8, 9, 10
+N_IP = 11
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, EPISODES, IN_EPISODE, GEOM = range(10)
 PREV_CELL, PREV_GREEDY = 10, 11  # the cell of the decision before the current one, and whether it was greedy
-N_S = 12
+REPEATS = 12  # the primitive steps taken so far with the current decision
+N_S = 13
 # F: float state
 RET, DISC, EP_RETURN, PREV_R = range(4)
 N_F = 4
@@ -127,6 +128,7 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     S[IN_EPISODE] = 1
     S[PREV_CELL] = -1
     S[PREV_GREEDY] = 0
+    S[REPEATS] = 0
     F[RET] = 0.0
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
@@ -142,8 +144,8 @@ def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collisi
     """Account for one primitive step that reached ``x`` with reward ``r``.
 
     Returns -1 while the aggregate transition goes on (same cell, no collision, not
-    ``done``), else the cell ``j`` it ends in, after the growth rules of SPEC §3
-    that act at once (collision; reward jump). Returns ``NOT_FINITE``, changing
+    ``done``, fewer than ``max_repeat`` steps), else the cell ``j`` it ends in, after
+    the growth rules of SPEC §3 that act at once (collision; reward jump). Returns ``NOT_FINITE``, changing
     nothing, when ``x`` or ``r`` is NaN or infinite.
     """
     if not math.isfinite(r):
@@ -161,6 +163,7 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
     i = S[CELL]
     a = S[ACTION]
     S[EP_STEPS] += 1
+    S[REPEATS] += 1
     F[RET] += F[DISC] * r
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
@@ -174,7 +177,9 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
         for d in range(x.shape[0]):
             V[j, d] += P[ADAPT] * (x[d] - V[j, d])
         S[GEOM] += 1
-    if j == i and not (collision or done):
+    # SPEC §2: the decision goes on while the cell stays the same; beyond the paper, for at most max_repeat
+    # steps, after which it ends in that same cell and learn() takes it as any other aggregate transition.
+    if j == i and not (collision or done or (IP[MAX_REPEAT] > 0 and S[REPEATS] >= IP[MAX_REPEAT])):
         return -1
     if collision:
         # SPEC §3, collision rule (avq.rules.collision_rule).
@@ -234,6 +239,7 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
     S[CELL] = j
     born[j, 1] = S[EPISODES] + 1
     S[ACTION] = a_next
+    S[REPEATS] = 0
     F[RET] = 0.0
     F[DISC] = 1.0
     if not done:

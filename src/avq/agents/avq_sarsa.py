@@ -28,7 +28,7 @@ class AVQSarsa(BaseAgent):
     observation (its nearest vector under the scaled metric) is the aggregate state
     that Sarsa(λ) learns on. In each cell it takes one ε-greedy decision and repeats
     it until the cell changes, a collision is reported, or the episode ends
-    (SPEC §2). Collisions append vectors (SPEC §3); after every ``merge_every``
+    (SPEC §2), or (``max_repeat``) for at most a number of steps. Collisions append vectors (SPEC §3); after every ``merge_every``
     episodes, mutually nearest cells with similar action values are merged (SPEC §4).
 
     Args:
@@ -108,6 +108,11 @@ class AVQSarsa(BaseAgent):
             from which the scale of the dimensions without finite bounds is estimated, >= 2.
         obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the
             scale ``high - low`` is taken, with ``scale="auto"`` or None.
+        max_repeat: Beyond the paper: a decision ends after at most this many primitive steps,
+            even in the same cell (>= 1; None, the paper: it is repeated until the cell changes).
+            It is then learned like a decision that ended in another cell: the Sarsa(λ) update of
+            ``(i, a) -> (i, a')`` with the return of its steps, and the value-change trigger. On
+            balancing tasks one long repetition can be fatal; on the mazes it is None.
         max_cells: Upper bound on the codebook size; at the bound, appends are refused
             (counted in the episode record as ``refused``).
         fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (as
@@ -172,6 +177,7 @@ class AVQSarsa(BaseAgent):
         scale_warmup: int = 1000,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
+        max_repeat: int | None = None,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:
@@ -202,6 +208,7 @@ class AVQSarsa(BaseAgent):
         self.value_trigger = check_optional(check_range, "value_trigger", value_trigger, **positive)
         self.reward_trigger = check_optional(check_range, "reward_trigger", reward_trigger, **positive)
         self.max_cells = check_int("max_cells", max_cells, 1)
+        self.max_repeat = check_optional(check_int, "max_repeat", max_repeat, 1)
         self.fused = check_bool("fused", fused)
         self.scale = scale
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
@@ -269,10 +276,11 @@ class AVQSarsa(BaseAgent):
         P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
         P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
         self._IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-                  core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER, core.MAKE_ROOM]] = (
+                  core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER, core.MAKE_ROOM,
+                  core.MAX_REPEAT]] = (
             self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
             self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split, self.prune_after,
-            self.make_room)
+            self.make_room, self.max_repeat or 0)
         self._S[core.EPISODES] = self.num_episodes
         self._rec = np.zeros(core.N_R)
         #: The observations counted for scale="auto" (none: no dimension is estimated).

@@ -27,7 +27,7 @@ from avq._random import RawStream
 from avq.agents import save_util
 from avq.envs import as_env
 from avq.agents._td import decide
-from avq.agents._history import EpisodeHistory
+from avq.agents._history import HISTORY_FIELDS, EpisodeHistory
 from avq._validate import check_bool, check_int, check_optional
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "NotFiniteError", "load"]
@@ -40,8 +40,8 @@ Callback = Callable[["BaseAgent", EpisodeRecord], "bool | None"]
 
 #: The fields every agent records per episode (``episode`` and ``wall_s`` are added by ``learn``).
 RECORD_FIELDS = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
-#: The columns of ``progress.csv``.
-PROGRESS_COLUMNS = ("episode", "steps", "return", "n_cells", "appends", "merges", "wall_s")
+#: The columns of ``progress.csv``: every field of the per-episode record.
+PROGRESS_COLUMNS = HISTORY_FIELDS
 
 
 class NotFiniteError(ValueError):
