@@ -18,7 +18,7 @@ NO = False
 
 def test_the_general_avq_has_a_budget_within_half_of_tiles_features():
     agent = avq.make_agent("avq", gym.make("CartPole-v1"))
-    tiles = avq.make_agent("tiles", gym.make("CartPole-v1"))
+    tiles = avq.make_agent("tiles", gym.make("MountainCar-v0"))
     assert agent.defaults_used.key == "*" and 2 * agent.max_cells <= tiles.iht_size
 
 

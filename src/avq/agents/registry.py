@@ -69,6 +69,13 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # Metric scaled by the observation bounds, and where they are not finite by the spread of the first
     # observations (scale="auto"; obs_bounds= wins for the dimensions it bounds).
     # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
+    # A budget of 2048 cells, half of tiles' 4096 features, and one decision per cell repeated until the cell
+    # changes (max_repeat None), chosen by scripts/tune_general.py (docs/RESULTS.md, "The general avq agent:
+    # repeating a decision, and a budget of cells"; 300 episodes, seeds 0-2, confirmed on 10-14): on CartPole-v1
+    # and MountainCar-v0 the partition stays under 700 cells (881 in 500 episodes) and the budget changes
+    # nothing; on Acrobot-v1 growth never stops (7,000-10,000 cells, at 10 times the wall time) while learning
+    # little (-434 median against -486 at 2048 and -497 for a random policy). Bounding a decision to 1-8 steps
+    # cost on MountainCar (-197 to -148 against -143) and helped nowhere clearly.
     #
     # On the grid maze, ``avq`` is ``avq-maze`` plus the cycle split and a decaying exploration rate (ε 0.2,
     # times 0.995 per episode, down to 0.01). Chosen on 150 seeds of ``lau2002`` and 100 generated mazes, among
@@ -81,7 +88,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     "avq": {
         "*": dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
                   q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
-                  reward_trigger=None, scale="auto"),
+                  reward_trigger=None, scale="auto", max_cells=2048, max_repeat=None),
         "avq/GridMaze-v0": {**_AVQ_MAZE, "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
                             "epsilon_min": 0.01},
         "avq/RobotMaze-v0": {**_AVQ_MAZE, "max_cells": 10_000},
@@ -180,7 +187,7 @@ SUMMARIES: dict[str, str] = {
            "`avq/RobotMaze-v0`: `avq-maze` without its budget of cells. Elsewhere: growth on collisions when the task "
            "reports them and where an action value changes by more than `value_trigger`, a merge-age guard "
            "(`merge_age`), and the metric scaled by the observation bounds, estimated from the observations where they "
-           "are not finite (`scale` \"auto\"; `obs_bounds=` wins).",
+           "are not finite (`scale` \"auto\"; `obs_bounds=` wins), and a budget of 2048 cells (`max_cells`).",
     "avq-maze": "AVQ beyond the paper, for tasks that report collisions: the paper's rules, plus a split where a cell's "
                 "greedy action hits a wall (`collision_split`), merging of nearest pairs (`merge_pairs`), and a budget "
                 "of cells (`max_cells`).",
