@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import avq
+from avq.agents.base import PROGRESS_COLUMNS
 from avq.runs import train
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")
@@ -94,7 +95,7 @@ def test_a_run_killed_twice_and_resumed_equals_an_uninterrupted_run(tmp_path):
         assert stopped_at % 50 == 0 and 0 < stopped_at < 2500
         lines = (run / "progress.csv").read_text().split("\n")
         assert lines[-1] == ""  # every row is a complete line
-        assert all(len(row.split(",")) == 7 for row in lines[1:-1])
+        assert all(len(row.split(",")) == len(PROGRESS_COLUMNS) for row in lines[1:-1])
     done = subprocess.run([sys.executable, "-m", "avq.cli", "train", "--resume", str(run), "--no-progress"],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr

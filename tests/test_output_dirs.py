@@ -19,6 +19,7 @@ import pytest
 import yaml
 
 import avq
+from avq.agents.base import PROGRESS_COLUMNS
 from avq.cli import main
 
 posix_only = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")
@@ -177,7 +178,7 @@ def test_a_full_disk_names_the_file_the_checkpoint_and_the_resume_command(fail_a
                     f"of {run}; free some space; the run stopped at its checkpoint after episode 20. "
                     f"Continue it with: avq train --resume {run}")
     rows = (run / "progress.csv").read_text().split("\n")
-    assert rows[-1] == "" and all(len(r.split(",")) == 7 for r in rows[1:-1])  # complete lines only
+    assert rows[-1] == "" and all(len(r.split(",")) == len(PROGRESS_COLUMNS) for r in rows[1:-1])  # complete lines only
     assert main(["train", "--resume", str(run), "--no-progress"]) == 0
     a, b = _arrays(tmp_path / "straight" / "model.zip"), _arrays(run / "model.zip")
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
