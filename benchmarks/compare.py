@@ -23,6 +23,9 @@ For each task, agent and seed (seeds 0 .. --seeds - 1):
   does (the table then says "> the run's steps" and counts the runs that got there);
 - ``env_steps`` and ``wall_s`` (training only).
 
+The table also gives each agent's mean return over episodes 281-300 against the random
+policy's (is it clearly better than random within 300 episodes?).
+
 Writes ``data/compare.csv`` (a row per run), ``data/compare_curves.json`` (returns
 per episode), ``data/compare_table.md`` (median [min-max] over seeds; cells over time)
 and ``figures/compare_<task>.png`` (learning curves, 95% t-intervals), and prints the
@@ -62,6 +65,7 @@ RANDOM = "random"
 WINDOW = 20  # episodes of the running mean that must reach the threshold
 EVAL_EPISODES = 20
 FRACTIONS = (0.10, 0.25, 0.50, 1.00)  # of training, where cells are counted
+EARLY = 300  # episodes: is an agent clearly better than the random policy by then?
 
 
 class RandomPolicy:
@@ -181,6 +185,16 @@ def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
             if rs[0]["cells"] is not None:
                 cols = [spread([r[f"cells_{round(f * 100)}"] for r in rs], "{:.0f}") for f in FRACTIONS]
                 lines.append(f"| {t} | {a} | " + " | ".join(cols) + " |")
+    lines += ["", f"Mean return of episodes {EARLY - WINDOW + 1}–{EARLY} (or the last {WINDOW} before), median "
+              "[min–max] over seeds; the seeds above the random policy's best seed:", "",
+              "| task | agent | return | seeds above random |", "|---|---|---|---|"]
+    for t in tasks:
+        early = {a: [float(np.mean(r["curve"][:EARLY][-WINDOW:])) for r in rows if r["task"] == t and r["agent"] == a]
+                 for a in agents}
+        best_random = max(early[RANDOM])
+        for a in agents:
+            above = "-" if a == RANDOM else f"{sum(v > best_random for v in early[a])}/{len(early[a])}"
+            lines.append(f"| {t} | {a} | {spread(early[a])} | {above} |")
     return lines
 
 

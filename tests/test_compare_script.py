@@ -51,4 +51,5 @@ def test_a_tiny_run_writes_its_rows_table_and_figure(tmp_path):
     assert all(int(r["cells_100"]) == int(r["cells"]) > 0 for r in rows if r["agent"] != "random")
     table = (tmp_path / "data" / "compare_table.md").read_text()
     assert "| CartPole-v1 | random |" in table and "Cells over time" in table and "Mountain Car check" not in table
+    assert "| CartPole-v1 | avq |" in table.split("seeds above random")[1]
     assert (tmp_path / "figures" / "compare_CartPole-v1.png").stat().st_size > 10_000
