@@ -1,17 +1,38 @@
-"""Compare every agent on MountainCar-v0, CartPole-v1 and RobotMaze-v0, plus the
-Sutton & Barto Mountain Car check for tile coding.
+"""Compare every agent on the classic-control tasks and RobotMaze-v0, against a random policy.
 
-For each task and agent, 10 seeds (by default): the learning curve (return per
-episode), the final performance (mean return over the last 10% of training
-episodes, and a greedy evaluation of 20 episodes), the cells or features in
-use, environment steps and wall time. Writes a CSV of the runs, one figure per
-task and a Markdown table, and prints the table.
+Tasks: MountainCar-v0, CartPole-v1 and Acrobot-v1 (the three classic-control tasks
+of Gymnasium with ``Discrete`` actions; CartPole-v0 is CartPole-v1 with a 200-step
+limit), and avq/RobotMaze-v0. Agents: ``avq``, ``avq-paper``, ``grid``, ``tiles``,
+``grid-ps``, ``avq-plan``, and a ``random`` row (uniformly random actions; not an
+agent, it learns nothing). ``tabular`` and ``tabular-ps`` are not run: they keep one
+state per distinct observation, and continuous observations never repeat, so they
+cannot generalize at all.
 
-    python benchmarks/compare.py --seeds 10 --out docs            # the figures in docs/RESULTS.md
+For each task, agent and seed (seeds 0 .. --seeds - 1):
+
+- ``final_return``: the mean return over the last 10% of the training episodes;
+- ``greedy_return``, ``greedy_success``: 20 evaluation episodes with exploration off.
+  Success per task (``avq.evaluation.SUCCESS_RULES``): MountainCar reaches the flag,
+  CartPole balances for the whole 500 steps, Acrobot swings the tip above the line
+  within 500 steps, RobotMaze reaches the goal;
+- ``cells``: cells (AVQ agents), bins visited (``grid``, ``grid-ps``) or tiles in use
+  (``tiles``) at the end, and ``cells_10`` .. ``cells_100`` after 10%, 25%, 50% and
+  100% of the training episodes;
+- ``steps_to_threshold``: the environment steps until the mean return of the last
+  20 episodes first reaches the task's threshold (``THRESHOLDS``); empty if it never
+  does (the table then says "> the run's steps" and counts the runs that got there);
+- ``env_steps`` and ``wall_s`` (training only).
+
+The table also gives each agent's mean return over episodes 281-300 against the random
+policy's (is it clearly better than random within 300 episodes?).
+
+Writes ``data/compare.csv`` (a row per run), ``data/compare_curves.json`` (returns
+per episode), ``data/compare_table.md`` (median [min-max] over seeds; cells over time)
+and ``figures/compare_<task>.png`` (learning curves, 95% t-intervals), and prints the
+table.
+
+    python benchmarks/compare.py --seeds 10 --jobs 2 --out docs      # the figures in docs/RESULTS.md
     python benchmarks/compare.py --seeds 2 --scale 0.1 --out /tmp/c  # a quick look
-
-``tabular`` is not run: on continuous observations every observation is a new
-row, so it cannot generalize at all (it stops at ``max_states``).
 """
 
 from __future__ import annotations
@@ -25,15 +46,63 @@ from pathlib import Path
 import numpy as np
 from joblib import Parallel, delayed
 
+#: CartPole's velocities are unbounded; the agents that cut a box need one (``avq`` does not).
 CARTPOLE_BOUNDS = [[-2.4, 2.4], [-3.0, 3.0], [-0.21, 0.21], [-3.5, 3.5]]
 
 #: task -> (env kwargs, training episodes, per-agent parameter overrides)
 TASKS = {
     "MountainCar-v0": ({}, 500, {}),
-    "CartPole-v1": ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("avq", "grid", "tiles")}),
+    "CartPole-v1": ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("grid", "tiles", "grid-ps", "avq-plan")}),
+    "Acrobot-v1": ({}, 500, {}),
     "avq/RobotMaze-v0": ({"layout": "lau2002", "move": 0.25}, 300, {}),
 }
-AGENTS = ("avq", "avq-paper", "grid", "tiles")
+#: task -> the return that the mean of the last 20 training episodes must reach: the usual "solved"
+#: levels of the classic tasks (Gym's reward_threshold for MountainCar and Acrobot; 195 is CartPole-v0's)
+#: and, on RobotMaze, reaching the goal with at most about 100 moves' worth of penalties.
+THRESHOLDS = {"MountainCar-v0": -150.0, "CartPole-v1": 195.0, "Acrobot-v1": -100.0, "avq/RobotMaze-v0": -100.0}
+AGENTS = ("avq", "avq-paper", "grid", "tiles", "grid-ps", "avq-plan")
+RANDOM = "random"
+WINDOW = 20  # episodes of the running mean that must reach the threshold
+EVAL_EPISODES = 20
+FRACTIONS = (0.10, 0.25, 0.50, 1.00)  # of training, where cells are counted
+EARLY = 300  # episodes: is an agent clearly better than the random policy by then?
+
+
+class RandomPolicy:
+    """Uniformly random actions from a seeded generator (``predict`` as an agent's)."""
+
+    def __init__(self, action_space, seed: int):
+        self.n = int(action_space.n)
+        self.rng = np.random.default_rng(seed)
+
+    def predict(self, obs, deterministic: bool = True):
+        return int(self.rng.integers(self.n)), None
+
+
+def steps_to_threshold(returns: np.ndarray, steps: np.ndarray, threshold: float) -> int | None:
+    """Env steps up to the end of the first episode where the mean of the last WINDOW returns reaches ``threshold``."""
+    if len(returns) < WINDOW:
+        return None
+    c = np.cumsum(np.insert(np.asarray(returns, float), 0, 0.0))
+    means = (c[WINDOW:] - c[:-WINDOW]) / WINDOW  # means[k]: episodes k .. k + WINDOW - 1
+    hit = np.flatnonzero(means >= threshold)
+    return None if hit.size == 0 else int(np.sum(steps[: hit[0] + WINDOW]))
+
+
+def summarize(task: str, agent: str, seed: int, episodes: int, returns, steps, cells, wall: float, ev: dict) -> dict:
+    """One row of the CSV: the run's figures (``cells`` per episode, or None for the random policy)."""
+    returns, steps = np.asarray(returns, float), np.asarray(steps, np.int64)
+    tail = returns[-max(1, episodes // 10):]
+    row = {
+        "task": task, "agent": agent, "seed": seed, "episodes": episodes,
+        "final_return": round(float(tail.mean()), 2), "greedy_return": round(ev["mean_return"], 2),
+        "greedy_success": ev["success_rate"], "cells": None if cells is None else int(cells[-1]),
+    }
+    for f in FRACTIONS:
+        row[f"cells_{round(f * 100)}"] = None if cells is None else int(cells[max(1, int(round(f * episodes))) - 1])
+    row.update({"threshold": THRESHOLDS[task], "steps_to_threshold": steps_to_threshold(returns, steps, THRESHOLDS[task]),
+                "env_steps": int(steps.sum()), "wall_s": round(wall, 2), "curve": returns.tolist()})
+    return row
 
 
 def run_one(task: str, agent: str, seed: int, episodes: int) -> dict:
@@ -43,21 +112,20 @@ def run_one(task: str, agent: str, seed: int, episodes: int) -> dict:
 
     env_kwargs, _, overrides = TASKS[task]
     env = make_env(task, env_kwargs)
-    model = avq.make_agent(agent, env, seed=seed, **overrides.get(agent, {}))
+    eval_env = make_env(task, env_kwargs)
     t0 = time.perf_counter()
+    if agent == RANDOM:
+        policy = RandomPolicy(env.action_space, seed)
+        run = evaluate_policy(policy, env, n_episodes=episodes, seed=seed)
+        wall = time.perf_counter() - t0
+        ev = evaluate_policy(policy, eval_env, n_episodes=EVAL_EPISODES, seed=10_000 + seed)
+        return summarize(task, agent, seed, episodes, run["returns"], run["steps"], None, wall, ev)
+    model = avq.make_agent(agent, env, seed=seed, **overrides.get(agent, {}))
     model.learn(total_episodes=episodes)
     wall = time.perf_counter() - t0
     hist = model.episode_history()
-    returns = np.asarray(hist["return"], float)
-    tail = returns[-max(1, episodes // 10):]
-    ev = evaluate_policy(model, make_env(task, env_kwargs), n_episodes=20, seed=10_000 + seed)
-    return {
-        "task": task, "agent": agent, "seed": seed, "episodes": episodes,
-        "final_return": float(tail.mean()), "greedy_return": ev["mean_return"],
-        "greedy_success": ev["success_rate"], "cells": int(model.n_cells),
-        "env_steps": int(model.num_timesteps), "wall_s": round(wall, 2),
-        "curve": returns.tolist(),
-    }
+    ev = evaluate_policy(model, eval_env, n_episodes=EVAL_EPISODES, seed=10_000 + seed)
+    return summarize(task, agent, seed, episodes, hist["return"], hist["steps"], hist["n_cells"], wall, ev)
 
 
 def mountain_car_check(seed: int, episodes: int = 50) -> float:
@@ -70,24 +138,87 @@ def mountain_car_check(seed: int, episodes: int = 50) -> float:
     return float(np.mean(model.episode_history()["steps"]))
 
 
+def spread(values, fmt: str = "{:.1f}") -> str:
+    """``median [min–max]`` of the seeds' values."""
+    v = np.asarray(values, float)
+    return f"{fmt.format(np.median(v))} [{fmt.format(v.min())}–{fmt.format(v.max())}]"
+
+
+def kilo(n: float) -> str:
+    return f"{n / 1000:.0f}k" if n >= 10_000 else f"{n / 1000:.1f}k"
+
+
+def threshold_cell(rs: list[dict]) -> str:
+    """Steps to the threshold: the median over seeds, the range over the runs that got there, and how many did.
+
+    A run that never got there counts as more than its own steps, so a median that falls among those
+    is given as more than the median of the steps known ("> n")."""
+    never = np.array([r["steps_to_threshold"] is None for r in rs])
+    known = np.array([r["env_steps"] if n else r["steps_to_threshold"] for r, n in zip(rs, never)], float)
+    median = np.median(np.where(never, np.inf, known))
+    txt = kilo(median) if np.isfinite(median) else f"> {kilo(np.median(known))}"
+    if not never.all():
+        txt += f" [{kilo(known[~never].min())}–{kilo(known[~never].max())}]"
+    return f"{txt}, {int((~never).sum())}/{len(rs)}"
+
+
+def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
+    lines = ["| task | agent | final return (last 10%) | greedy return | greedy success | cells / features | "
+             "env steps to threshold, runs there | env steps | s / run |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for t in tasks:
+        for a in agents:
+            rs = [r for r in rows if r["task"] == t and r["agent"] == a]
+            succ = [r["greedy_success"] for r in rs]
+            succ_txt = "-" if any(s is None for s in succ) else spread(np.multiply(succ, 100), "{:.0f}%")
+            cells = "-" if rs[0]["cells"] is None else spread([r["cells"] for r in rs], "{:.0f}")
+            lines.append(
+                f"| {t} | {a} | {spread([r['final_return'] for r in rs])} | {spread([r['greedy_return'] for r in rs])} | "
+                f"{succ_txt} | {cells} | {threshold_cell(rs)} | {np.median([r['env_steps'] for r in rs]):.0f} | "
+                f"{np.median([r['wall_s'] for r in rs]):.1f} |")
+    lines += ["", "Cells over time (median [min–max] over seeds) after a fraction of the training episodes:", "",
+              "| task | agent | " + " | ".join(f"{f:.0%}" for f in FRACTIONS) + " |",
+              "|---|---|" + "---|" * len(FRACTIONS)]
+    for t in tasks:
+        for a in agents:
+            rs = [r for r in rows if r["task"] == t and r["agent"] == a]
+            if rs[0]["cells"] is not None:
+                cols = [spread([r[f"cells_{round(f * 100)}"] for r in rs], "{:.0f}") for f in FRACTIONS]
+                lines.append(f"| {t} | {a} | " + " | ".join(cols) + " |")
+    lines += ["", f"Mean return of episodes {EARLY - WINDOW + 1}–{EARLY} (or the last {WINDOW} before), median "
+              "[min–max] over seeds; the seeds above the random policy's best seed:", "",
+              "| task | agent | return | seeds above random |", "|---|---|---|---|"]
+    for t in tasks:
+        early = {a: [float(np.mean(r["curve"][:EARLY][-WINDOW:])) for r in rows if r["task"] == t and r["agent"] == a]
+                 for a in agents}
+        best_random = max(early[RANDOM])
+        for a in agents:
+            above = "-" if a == RANDOM else f"{sum(v > best_random for v in early[a])}/{len(early[a])}"
+            lines.append(f"| {t} | {a} | {spread(early[a])} | {above} |")
+    return lines
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--seeds", type=int, default=10, help="seeds 0 .. SEEDS-1")
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every task's episode budget")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs")
     ap.add_argument("--tasks", default=",".join(TASKS))
-    ap.add_argument("--agents", default=",".join(AGENTS))
+    ap.add_argument("--agents", default=",".join(AGENTS), help=f"agent names, and {RANDOM!r} (added if left out)")
     args = ap.parse_args()
     out = Path(args.out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "data").mkdir(parents=True, exist_ok=True)
     tasks = [t for t in args.tasks.split(",") if t]
     agents = [a for a in args.agents.split(",") if a]
-    jobs = [(t, a, s, max(2, int(TASKS[t][1] * args.scale))) for t in tasks for a in agents for s in range(args.seeds)]
+    agents += [RANDOM] if RANDOM not in agents else []
+    jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale))) for t in tasks for a in agents
+            for s in range(args.seeds)]
     t0 = time.perf_counter()
-    rows = Parallel(n_jobs=args.jobs, verbose=0)(delayed(run_one)(*j) for j in jobs)
-    mc = Parallel(n_jobs=args.jobs)(delayed(mountain_car_check)(s) for s in range(args.seeds))
+    rows = Parallel(n_jobs=args.jobs, verbose=5)(delayed(run_one)(*j) for j in jobs)
+    mc = Parallel(n_jobs=args.jobs)(delayed(mountain_car_check)(s) for s in range(args.seeds)) \
+        if "MountainCar-v0" in tasks else []
     total = time.perf_counter() - t0
 
     with open(out / "data" / "compare.csv", "w", newline="") as f:
@@ -101,26 +232,18 @@ def main() -> None:
 
     from avq.plotting import plot_learning_curves
 
-    lines = ["| task | agent | final return (last 10%) | greedy return | greedy success | cells / features | env steps | s / run |",
-             "|---|---|---|---|---|---|---|---|"]
     for t in tasks:
         curves = {a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a] for a in agents}
         plot_learning_curves(curves, out / "figures" / f"compare_{t.replace('/', '-')}.png", ylabel="return",
-                             window=20, title=f"{t}: return per episode (mean, 95% interval, {args.seeds} seeds)")
-        for a in agents:
-            rs = [r for r in rows if r["task"] == t and r["agent"] == a]
-            fin = np.array([r["final_return"] for r in rs])
-            gr = np.array([r["greedy_return"] for r in rs])
-            succ = [r["greedy_success"] for r in rs]
-            succ_txt = "-" if any(s is None for s in succ) else f"{np.mean(succ):.0%}"
-            cells = np.array([r["cells"] for r in rs])
-            lines.append(
-                f"| {t} | {a} | {fin.mean():.1f} ± {fin.std():.1f} | {gr.mean():.1f} ± {gr.std():.1f} | {succ_txt} | "
-                f"{int(np.median(cells))} [{cells.min()}–{cells.max()}] | {np.mean([r['env_steps'] for r in rs]):.0f} | "
-                f"{np.mean([r['wall_s'] for r in rs]):.1f} |")
+                             xlabel="episode", window=WINDOW,
+                             title=f"{t}: return per episode, {args.seeds} seeds (threshold {THRESHOLDS[t]:g})")
+    lines = tables(rows, tasks, agents)
     lines.append("")
-    lines.append(f"Mountain Car check (tiles, 8 tilings, uncapped, first 50 episodes): mean steps per episode "
-                 f"{np.mean(mc):.0f} (seeds: {', '.join(f'{v:.0f}' for v in mc)}); Sutton & Barto report about 180-300.")
+    lines.append("Thresholds (mean return of the last 20 episodes): "
+                 + ", ".join(f"{t} {THRESHOLDS[t]:g}" for t in tasks) + ".")
+    if mc:
+        lines.append(f"Mountain Car check (tiles, 8 tilings, uncapped, first 50 episodes): mean steps per episode "
+                     f"{np.mean(mc):.0f} (seeds: {', '.join(f'{v:.0f}' for v in mc)}); Sutton & Barto report about 180-300.")
     lines.append(f"Total wall time {total:.0f} s with {args.jobs} processes.")
     table = "\n".join(lines)
     (out / "data" / "compare_table.md").write_text(table + "\n")
