@@ -160,9 +160,9 @@ def reproduce(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file; give a directory for the results")
-    # The lock is beside ``out`` (hidden, ``.NAME.lock``), so that it holds while ``out`` is replaced.
     _check_replaceable(out)
     make_dirs(out.parent)
+    # The lock is beside ``out`` (hidden, ``.NAME.lock``), so that it holds while ``out`` is replaced.
     beside = out.absolute()
     with hold_directory(out, beside.parent / f".{beside.name}.lock"):
         t0 = time.perf_counter()
@@ -194,9 +194,8 @@ def _check_replaceable(out: Path) -> None:
 @contextmanager
 def _replacing(out: Path) -> Iterator[Path]:
     """A new directory beside ``out`` to write into; it replaces ``out`` when the block ends without an
-    error, and is removed when the block raises (``out`` is then left as it was)."""
+    error, and is removed when the block raises (``out`` is then left as it was). ``out``'s parent exists."""
     parent = out.absolute().parent
-    parent.mkdir(parents=True, exist_ok=True)
     staging = parent / f".{out.name}.partial-{uuid.uuid4().hex[:8]}"
     staging.mkdir()
     try:
@@ -283,7 +282,6 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
     first = int(seeds[0])
     avq_names = [n for n in agents if n.startswith("avq")]
     env = gym.make("avq/GridMaze-v0", layout=layout_arg, start=start)
-    figures = []
 
     def title(name: str, seed: int, n_cells: int, which: str = "") -> str:
         return (f"{name}, seed {seed}{which}: {n_cells} cells for {lay.n_states} states\n"
@@ -296,22 +294,19 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
         else [ranked[0], ranked[-1]]
     models = [load(by[(headline, s)].model_path, env=env) for s in shown]
     which = [""] if len(shown) == 1 else [f" (best of {len(seeds)} seeds)", f" (worst of {len(seeds)} seeds)"]
-    figures.append(out / "partition.png")
-    plot_partitions(models, env, figures[-1],
+    plot_partitions(models, env, out / "partition.png",
                     titles=[title(headline, s, m.n_cells, w) for s, m, w in zip(shown, models, which)])
     # partition-NAME.png: every other AVQ agent's first seed.
     for name in avq_names:
         if name != headline:
             model = load(by[(name, first)].model_path, env=env)
-            figures.append(out / f"partition-{name}.png")
-            plot_partition(model, env, figures[-1], title=title(name, first, model.n_cells))
+            plot_partition(model, env, out / f"partition-{name}.png", title=title(name, first, model.n_cells))
     from avq.figure_data import PartitionRecorder, has_partition
 
     if animate and has_partition(AGENTS[headline][0]):
         recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout=layout_arg, start=start))
         train_maze_run(headline, layout_arg, shown[0], trials, start, callback=recorder)
-        figures.append(out / "partition.gif")
-        animate_partition(recorder.views(), env, figures[-1], title=f"{headline}, seed {shown[0]}")
+        animate_partition(recorder.views(), env, out / "partition.gif", title=f"{headline}, seed {shown[0]}")
     curves = {n: [by[(n, int(s))].steps_per_trial for s in seeds] for n in agents}
     cells = {n: [by[(n, int(s))].cells_per_trial for s in seeds] for n in avq_names}
     plot_learning_curves(curves, out / "learning_curve.png", cells=cells or None,
