@@ -1,4 +1,5 @@
-"""How the general ``avq`` defaults for repeating a decision (``max_repeat``) and for the budget of cells
+"""How the general ``avq`` defaults (``avq-sarsa`` since the planning agent became ``avq`` on these tasks) for
+repeating a decision (``max_repeat``) and for the budget of cells
 (``max_cells``) were chosen: ``avq`` with its ``"*"`` defaults on CartPole-v1 (no ``obs_bounds``), MountainCar-v0
 and Acrobot-v1, 300 episodes, every pair of ``max_repeat`` and ``max_cells`` given.
 
@@ -42,7 +43,7 @@ def run(phase: str, task: str, max_repeat: int | None, max_cells: int, seed: int
 
     import avq
 
-    agent = avq.make_agent("avq", gym.make(task), seed=seed, max_repeat=max_repeat, max_cells=max_cells)
+    agent = avq.make_agent("avq-sarsa", gym.make(task), seed=seed, max_repeat=max_repeat, max_cells=max_cells)
     t0 = time.perf_counter()
     agent.learn(total_episodes=EPISODES)
     h = agent.episode_history()
@@ -53,10 +54,11 @@ def run(phase: str, task: str, max_repeat: int | None, max_cells: int, seed: int
                 env_steps=agent.num_timesteps, wall_s=round(time.perf_counter() - t0, 1))
 
 
-def save(row: dict) -> None:
-    new = not os.path.exists(OUT)
-    with open(OUT, "a", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=FIELDS)
+def save(row: dict, out: str = OUT, fields: list[str] = FIELDS) -> None:
+    """Append ``row`` to the CSV ``out`` (its header ``fields`` first, when the file is new)."""
+    new = not os.path.exists(out)
+    with open(out, "a", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
         if new:
             w.writeheader()
         w.writerow(row)

@@ -320,7 +320,7 @@ def test_alpha_schedule_decays_per_episode_and_is_the_step_of_the_updates(tmp_pa
 
 
 def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
-    from avq.agents.registry import AGENTS, TASK_DEFAULTS, agent_defaults
+    from avq.agents.registry import AGENTS, DEFAULTS, TASK_DEFAULTS, agent_class, agent_defaults
 
     maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
     assert maze.get_params() == {**avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
@@ -331,9 +331,12 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert avq.make_agent("avq", GridMaze(), seed=0).get_params() == maze.get_params()  # built without gym.make
     robot = avq.make_agent("avq", "avq/RobotMaze-v0")
     assert robot.collision_split and not robot.cycle_split and robot.max_cells == 10_000
+    assert isinstance(maze, AVQSarsa) and isinstance(robot, AVQSarsa)
     general = avq.make_agent("avq", gym.make("MountainCar-v0"))
+    assert isinstance(general, avq.PlanningAVQ) and agent_class("avq", "MountainCar-v0") is avq.PlanningAVQ
     assert {k: general.get_params()[k] for k in AGENTS["avq"][1]} == AGENTS["avq"][1]
-    assert not general.collision_split and general.value_trigger == 1.0
+    assert general.split_after == 5 and general.v_opt == "auto"
+    assert AGENTS["avq"][1] is DEFAULTS["avq-plan"]["*"]  # (one set of general defaults for the planning agent)
     # Explicit overrides win over the task's defaults; the task's defaults replace all of the name's.
     assert avq.make_agent("avq", "avq/GridMaze-v0", cycle_split=False, d_min=2.0).get_params()["d_min"] == 2.0
     assert agent_defaults("avq", "avq/GridMaze-v0") == TASK_DEFAULTS["avq"]["avq/GridMaze-v0"]
@@ -353,10 +356,10 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
                          "(avq.agents.registry.DEFAULTS['avq']['avq/GridMaze-v0']); explicit: none")
     entry = DEFAULTS["avq"]["avq/GridMaze-v0"]
     assert {k: maze.get_params()[k] for k in entry} == entry
-    general = make_agent("avq", "MountainCar-v0", alpha=0.2)
-    assert general.defaults_used.key == "*" and general.defaults_used.explicit == {"alpha": 0.2}
-    assert str(general.defaults_used).endswith("DEFAULTS['avq']['*']); explicit: alpha=0.2")
-    assert general.get_params()["alpha"] == 0.2 and general.get_params()["merge_age"] == 5
+    general = make_agent("avq", "MountainCar-v0", d_min=0.2)
+    assert general.defaults_used.key == "*" and general.defaults_used.explicit == {"d_min": 0.2}
+    assert str(general.defaults_used).endswith("DEFAULTS['avq']['*']); explicit: d_min=0.2")
+    assert general.get_params()["d_min"] == 0.2 and general.get_params()["split_after"] == 5
     # scale="auto" is kept as given; the scale in force (here the observation bounds') is scale_.
     space = general.env.observation_space
     assert general.get_params()["scale"] == "auto"
@@ -367,7 +370,8 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     # One table: AGENTS and TASK_DEFAULTS hold DEFAULTS' own entries.
     for name, table in DEFAULTS.items():
         assert AGENTS[name][1] is table["*"]
-    assert TASK_DEFAULTS == {"avq": {k: v for k, v in DEFAULTS["avq"].items() if k != "*"}}
+    assert TASK_DEFAULTS == {name: {k: v for k, v in DEFAULTS[name].items() if k != "*"}
+                             for name in ("avq", "avq-plan")}
 
 
 def test_validators_name_the_parameter_and_the_value():

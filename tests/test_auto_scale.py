@@ -1,5 +1,6 @@
 """``scale="auto"``: the metric's scale of the dimensions without finite bounds, estimated from the first
-observations (``AVQSarsa``, the default of ``avq``), saved and resumed exactly; explicit bounds win."""
+observations (``AVQSarsa``: ``avq-sarsa``; the planning agent, ``avq``'s class on tasks without collisions, in
+test_plan_general.py), saved and resumed exactly; explicit bounds win."""
 
 import gymnasium as gym
 import numpy as np
@@ -108,8 +109,8 @@ def test_avq_learns_cartpole_without_obs_bounds():
 
 @pytest.mark.parametrize("first", [3, 15])  # saved during the warm-up (100 observations), and after it
 def test_the_estimate_is_saved_and_resumed_exactly(tmp_path, first):
-    whole = make_agent("avq", "CartPole-v1", seed=1, scale_warmup=100).learn(total_episodes=25)
-    part = make_agent("avq", "CartPole-v1", seed=1, scale_warmup=100).learn(total_episodes=first)
+    whole = make_agent("avq-sarsa", "CartPole-v1", seed=1, scale_warmup=100).learn(total_episodes=25)
+    part = make_agent("avq-sarsa", "CartPole-v1", seed=1, scale_warmup=100).learn(total_episodes=first)
     assert (part._spread.count < 100) == (first == 3)
     loaded = avq.load(part.save(tmp_path / "m.zip"))
     assert np.array_equal(loaded.scale_, part.scale_)
@@ -120,17 +121,17 @@ def test_the_estimate_is_saved_and_resumed_exactly(tmp_path, first):
 
 
 def test_given_bounds_win_over_the_estimate():
-    agent = make_agent("avq", "CartPole-v1", seed=0, obs_bounds=CARTPOLE_BOUNDS).learn(total_episodes=5)
+    agent = make_agent("avq-sarsa", "CartPole-v1", seed=0, obs_bounds=CARTPOLE_BOUNDS).learn(total_episodes=5)
     assert agent.scale_.tolist() == [4.8, 6.0, 0.42, 7.0]
-    partly = make_agent("avq", "CartPole-v1", seed=0, obs_bounds=[None, [-3, 3], None, None]).learn(total_episodes=5)
+    partly = make_agent("avq-sarsa", "CartPole-v1", seed=0, obs_bounds=[None, [-3, 3], None, None]).learn(total_episodes=5)
     assert partly.scale_[1] == 6.0 and partly.scale_[3] not in (1.0, 7.0)
 
 
 def test_a_model_file_with_a_scale_that_does_not_fit_is_refused(tmp_path):
-    agent = make_agent("avq", "CartPole-v1", seed=0).learn(total_episodes=2)
+    agent = make_agent("avq-sarsa", "CartPole-v1", seed=0).learn(total_episodes=2)
     meta, arrays = agent._state_dict()
     arrays["scale"] = arrays["scale"] * np.array([2.0, 1.0, 1.0, 1.0])  # a bounded dimension's scale changed
-    fresh = make_agent("avq", "CartPole-v1", seed=0)
+    fresh = make_agent("avq-sarsa", "CartPole-v1", seed=0)
     fresh._setup()
     with pytest.raises(ValueError, match="array scale .* does not fit the parameters' scale"):
         fresh._load_state_dict(meta, arrays)

@@ -28,7 +28,7 @@ def test_on_a_task_that_asks_for_more_the_default_budget_holds_and_counts_what_i
     # value trigger asks for a cell at every step.
     points = np.stack(np.meshgrid(*[np.arange(-6.0, 7.0, 1.5)] * 4, indexing="ij"), -1).reshape(-1, 4)
     steps = [(tuple(p), 100.0 * (-1) ** k, k == len(points) - 2, NO, NO) for k, p in enumerate(points[1:])]
-    agent = avq.make_agent("avq", ScriptedEnv([(tuple(points[0]), steps)], dims=4), seed=0, max_repeat=1)
+    agent = avq.make_agent("avq-sarsa", ScriptedEnv([(tuple(points[0]), steps)], dims=4), seed=0, max_repeat=1)
     budget = agent.max_cells
     assert len(points) > budget + 100
     agent.learn(total_episodes=1)

@@ -66,7 +66,7 @@ def test_a_decision_ended_by_max_repeat_grows_cells_as_any_other():
 
 def test_the_count_goes_on_across_learn_calls_and_a_saved_agent_resumes_exactly(tmp_path):
     def make():
-        return avq.make_agent("avq", gym.make("CartPole-v1"), seed=3, max_repeat=2)
+        return avq.make_agent("avq-sarsa", gym.make("CartPole-v1"), seed=3, max_repeat=2)
 
     straight = make().learn(total_episodes=12)
     split = make().learn(total_timesteps=41).learn(total_timesteps=33)  # stops inside decisions
@@ -81,7 +81,7 @@ def test_the_count_goes_on_across_learn_calls_and_a_saved_agent_resumes_exactly(
     # The option acts: decisions are at least half the steps, which one decision per cell never is here.
     h = straight.episode_history()
     assert (2 * h["decisions"] >= h["steps"]).all()
-    unbounded = avq.make_agent("avq", gym.make("CartPole-v1"), seed=3, max_repeat=None).learn(total_episodes=12)
+    unbounded = avq.make_agent("avq-sarsa", gym.make("CartPole-v1"), seed=3, max_repeat=None).learn(total_episodes=12)
     assert (2 * unbounded.episode_history()["decisions"] < unbounded.episode_history()["steps"]).any()
 
 
@@ -107,11 +107,11 @@ def test_the_fused_maze_loop_and_the_generic_path_agree_with_max_repeat(name):
 @pytest.mark.parametrize("value", [0, -3, 2.5, True, "3"])
 def test_max_repeat_must_be_a_positive_integer_or_none(value):
     with pytest.raises(ValueError, match=f"^{re.escape(f'max_repeat must be an integer >= 1 or None, not {value!r}')}$"):
-        avq.make_agent("avq", gym.make("CartPole-v1"), max_repeat=value)
+        avq.make_agent("avq-sarsa", gym.make("CartPole-v1"), max_repeat=value)
 
 
 def test_the_command_line_names_a_bad_max_repeat_and_takes_null(tmp_path, capsys):
-    args = ["train", "--env", "CartPole-v1", "--agent", "avq", "--episodes", "2", "--no-progress"]
+    args = ["train", "--env", "CartPole-v1", "--agent", "avq-sarsa", "--episodes", "2", "--no-progress"]
     assert main([*args, "--out", str(tmp_path / "bad"), "--set", "max_repeat=0"]) == 2
     assert capsys.readouterr().err.strip() == "avq: error: max_repeat must be an integer >= 1 or None, not 0"
     assert not (tmp_path / "bad").exists()

@@ -108,13 +108,22 @@ def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: An
 
 
 def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_min: Any, known_after: Any,
-                          n_backups: Any, tol: Any) -> None:
-    """Check and store the hyper-parameters every planning agent shares."""
+                          n_backups: Any, tol: Any, auto_v_opt: bool = False) -> None:
+    """Check and store the hyper-parameters every planning agent shares (``auto_v_opt``: the agent also
+    takes ``v_opt="auto"``)."""
     agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
     agent.epsilon = check_range("epsilon", epsilon, 0.0, 1.0)
-    agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
+    if auto_v_opt and isinstance(v_opt, str) and v_opt == "auto":
+        agent.v_opt = v_opt
+    else:
+        try:
+            agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
+        except _Invalid as exc:
+            if not auto_v_opt:
+                raise
+            raise _Invalid(exc.name, f"{exc.expected} or 'auto'", exc.value) from None
     agent.v_min = check_range("v_min", v_min, -np.inf, np.inf, low_open=True, high_open=True)
-    if agent.v_min > agent.v_opt:
+    if agent.v_opt != "auto" and agent.v_min > agent.v_opt:
         raise ValueError(f"v_min ({agent.v_min}) must not exceed v_opt ({agent.v_opt}): v_min is the floor of every "
                          "value, v_opt what an untried decision is worth")
     agent.known_after = check_int("known_after", known_after, 1)

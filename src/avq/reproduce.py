@@ -17,7 +17,7 @@ import numpy as np
 
 from avq._io import atomic_write_bytes, hold_directory, make_dirs
 from avq.agents.base import Callback
-from avq.agents.registry import AGENTS, make_agent
+from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.envs.layouts import Layout, LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
 
@@ -303,7 +303,7 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
             plot_partition(model, env, out / f"partition-{name}.png", title=title(name, first, model.n_cells))
     from avq.figure_data import PartitionRecorder, has_partition
 
-    if animate and has_partition(AGENTS[headline][0]):
+    if animate and has_partition(agent_class(headline, "avq/GridMaze-v0")):
         recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout=layout_arg, start=start))
         train_maze_run(headline, layout_arg, shown[0], trials, start, callback=recorder)
         animate_partition(recorder.views(), env, out / "partition.gif", title=f"{headline}, seed {shown[0]}")

@@ -14,7 +14,7 @@ import numpy as np
 from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
 from avq._validate import check_int
 from avq.agents.base import PROGRESS_COLUMNS, Callback, NotFiniteError
-from avq.agents.registry import AGENTS, make_agent
+from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.evaluation import evaluate_maze
 
 __all__ = ["train", "resume_train", "evaluate_run", "make_env", "read_run_config"]
@@ -152,7 +152,7 @@ def _recorded_params(config: dict[str, Any]) -> dict[str, Any]:
 
     params = dict(config.get("params") or {})
     if config.get("agent") in AGENTS:
-        signature = inspect.signature(AGENTS[config["agent"]][0].__init__)
+        signature = inspect.signature(agent_class(config["agent"], config.get("env")).__init__)
         for name, p in signature.parameters.items():
             if name not in ("self", "env", "seed") and name not in params and p.default is not p.empty:
                 params[name] = p.default

@@ -329,7 +329,7 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
             if cell_cache[iy, ix] < 0:
                 cell_cache[iy, ix], dist_cache[iy, ix] = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
             j, d2 = cell_cache[iy, ix], dist_cache[iy, ix]
-        if plan_core.goes_on(P, S, F, r, j, collision, terminated or truncated):
+        if plan_core.goes_on(P, IP, S, F, r, j, d2, collision, terminated or truncated):
             continue
         a = plan_core.end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm,
                                      e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,

@@ -36,7 +36,7 @@ parameters ``MP`` (index names below).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -141,6 +141,17 @@ class Model:
         self.reserve(states=1)
         return add_state(*self.a)
 
+    def raise_optimism(self, v_opt: float) -> None:
+        """Make untried pairs worth ``v_opt`` from now on (at least what they were worth): every state is
+        backed up once and queued, so that the change reaches its predecessors over the next sweeps."""
+        a = self.a
+        if v_opt <= a.MP[V_OPT]:
+            return
+        a.MP[V_OPT] = v_opt
+        for s in range(self.n_states):
+            self.queue(s, FIRST)
+        self.sweep(self.n_states)
+
     def queue(self, s: int, priority: float) -> None:
         """Queue state ``s`` for a backup with ``priority`` (or raise its priority to it)."""
         push(self.a.heap, self.a.hpos, self.a.prio, self.a.C, s, priority)
@@ -164,6 +175,20 @@ class Model:
             if src.shape[1:] != arr.shape[1:] or len(src) > len(arr):
                 raise ValueError(f"model array {name} has shape {src.shape}, which does not fit {arr.shape}")
             arr[: len(src)] = src
+
+
+#: The horizon of ``v_opt="auto"`` on a task with ``gamma = 1`` and no time limit.
+UNLIMITED_HORIZON = 1000
+
+
+def horizon(env: Any, gamma: float) -> float:
+    """The number of steps by which ``v_opt="auto"`` multiplies the largest reward: the environment's time
+    limit (``env.spec.max_episode_steps``), else ``1 / (1 - gamma)``, else :data:`UNLIMITED_HORIZON`."""
+    spec = getattr(env, "spec", None)
+    limit = getattr(spec, "max_episode_steps", None)
+    if limit:
+        return float(limit)
+    return 1.0 / (1.0 - gamma) if gamma < 1.0 else float(UNLIMITED_HORIZON)
 
 
 #: Which capacity each array's first dimension follows: states, edges, or its own length.

@@ -56,13 +56,15 @@ from avq.rules import APPEND, collision_rule
 GAMMA, EPS, DMIN, SPLIT_THRESHOLD, SLOPE = range(5)
 N_P = 5
 # IP: int parameters
-MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY, CYCLE_SPLIT = range(6)
-N_IP = 6
+MAX_CELLS, BUDGET, COLLISION_GROWTH, OUTCOME_SPLIT, MEMORY, CYCLE_SPLIT, SPLIT_AFTER = range(7)
+N_IP = 7
 # S: int state
 SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, IN_EPISODE, MEM_N, MEM_POS, SPLITS, GEOM = range(12)
 PREV_CELL, PREV_KNOWN = 12, 13  # the cell of the decision before the current one (-1 at an episode's start),
 # and whether that decision was of a known pair
-N_S = 14
+DEC_STEPS = 14  # the primitive steps taken so far with the current decision
+DEC_REFUSED = 15  # whether split_after's growth was refused during the current decision (counted once)
+N_S = 16
 # F: float state: the current transition's return and discount, the episode's return, and the sums
 # that estimate the value's slope (return per unit of scaled distance travelled, and how many); then
 # n + 1 entries of scratch (F has N_F + n + 1 entries)
@@ -97,9 +99,9 @@ def _row_distance2(X, t: int, off: int, V, i: int, inv_scale) -> float:
 @njit(cache=True, inline="always")
 def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_scale) -> int:
     """The cell of the stored observation ``X[t, off:]``, which was in cell ``k``, after vectors ``u`` and
-    ``w`` changed (moved or new): among ``k``, ``u``, ``w`` unless it was in one of them (then among all),
-    lowest index on ties as :func:`avq._kernels.nearest_index`."""
-    if k == u or k == w:
+    ``w`` changed (moved or new): among ``k``, ``u``, ``w`` unless it was in one of them or ``u < 0`` (the
+    metric changed: then among all), lowest index on ties as :func:`avq._kernels.nearest_index`."""
+    if k == u or k == w or u < 0:
         best, _ = nearest_index(V, size, X[t, off:off + V.shape[1]], inv_scale)
         return best
     best = k
@@ -131,8 +133,8 @@ def _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edg
 @njit(cache=True)
 def relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head,
              p_sa, p_edge, p_next, heap, hpos, prio, C, u: int, w: int) -> None:
-    """After vectors ``u`` and ``w`` changed, move every remembered transition whose start or end cell
-    changed to its new pair in the model (and queue both cells' backups)."""
+    """After vectors ``u`` and ``w`` changed (``u = w = -1``: the metric changed), move every remembered
+    transition whose start or end cell changed to its new pair in the model (and queue both cells' backups)."""
     n = V.shape[1]
     size = S[SIZE]
     for t in range(S[MEM_N]):
@@ -149,8 +151,9 @@ def relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, 
         push(heap, hpos, prio, C, ns, FIRST)
         mem_i[t, 1] = ns
         mem_i[t, 2] = ne
-    push(heap, hpos, prio, C, u, FIRST)
-    push(heap, hpos, prio, C, w, FIRST)
+    if u >= 0:
+        push(heap, hpos, prio, C, u, FIRST)
+        push(heap, hpos, prio, C, w, FIRST)
 
 
 @njit(cache=True, inline="always")
@@ -333,6 +336,8 @@ def start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, h
     S[IN_EPISODE] = 1
     S[PREV_CELL] = -1
     S[PREV_KNOWN] = 0
+    S[DEC_STEPS] = 0
+    S[DEC_REFUSED] = 0
     F[RET] = 0.0
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
@@ -355,7 +360,7 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, he
         if not math.isfinite(x[d]):
             return NOT_FINITE
     j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
-    if goes_on(P, S, F, r, j, collision, terminated or truncated):
+    if goes_on(P, IP, S, F, r, j, d2, collision, terminated or truncated):
         return S[ACTION]
     return end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
                           e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, src, x,
@@ -363,15 +368,26 @@ def step(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, he
 
 
 @njit(cache=True, inline="always")
-def goes_on(P, S, F, r: float, j: int, collision: bool, done: bool) -> bool:
+def goes_on(P, IP, S, F, r: float, j: int, d2: float, collision: bool, done: bool) -> bool:
     """Count a step of reward ``r`` into the current decision's aggregate transition, and whether the
-    decision goes on: the step stayed in the cell (``j``, the nearest vector), without a collision, and the
-    episode goes on (SPEC §2). When it does not, :func:`end_transition` follows."""
+    decision goes on: the step stayed in the cell (``j``, the nearest vector, at squared distance ``d2``),
+    without a collision, and the episode goes on (SPEC §2); and (``split_after``) it has not yet stayed
+    that many steps in the cell while ``x`` lies farther than ``d_min`` from every vector, where
+    :func:`end_transition` gives ``x`` a cell of its own. When it does not, :func:`end_transition` follows."""
     S[EP_STEPS] += 1
+    S[DEC_STEPS] += 1
     F[RET] += F[DISC] * r
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
-    return j == S[CELL] and not (collision or done)
+    if j != S[CELL] or collision or done:
+        return False
+    if IP[SPLIT_AFTER] > 0 and S[DEC_STEPS] >= IP[SPLIT_AFTER] and d2 > P[DMIN] * P[DMIN]:
+        if S[SIZE] < IP[MAX_CELLS]:
+            return False
+        if not S[DEC_REFUSED]:
+            S[REFUSED] += 1  # (once per decision)
+            S[DEC_REFUSED] = 1
+    return True
 
 
 @njit(cache=True)
@@ -386,6 +402,12 @@ def end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt
     a = S[ACTION]
     done = terminated or truncated
     # The aggregate transition (i, a) -> j has ended.
+    if j == i and not (collision or done) and IP[SPLIT_AFTER] > 0 and S[DEC_STEPS] >= IP[SPLIT_AFTER]:
+        # The decision stayed split_after steps in its cell and x lies farther than d_min from every vector
+        # (goes_on): the cell is too large for one decision there; x gets a cell of its own.
+        j = append_cell(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
+                        e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, x)
+        S[SPLITS] += 1
     travelled = distance_between(xs, x, inv_scale)
     if not collision and travelled > 0.0:
         F[SLOPE_SUM] += abs(F[RET]) / travelled
@@ -455,6 +477,8 @@ def end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt
         xs[d] = x[d]
     F[RET] = 0.0
     F[DISC] = 1.0
+    S[DEC_STEPS] = 0
+    S[DEC_REFUSED] = 0
     S[DECISIONS] += 1
     S[ACTION] = epsilon_greedy(src, Q, j, P[EPS])
     return S[ACTION]

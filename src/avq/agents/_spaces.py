@@ -117,6 +117,56 @@ class RunningSpread:
         return np.sqrt(self.m2 / max(self.count, 1))
 
 
+def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
+    """An agent's ``scale`` parameter as ``(scale, estimated)``: ``"auto"`` as :func:`auto_scale`, anything
+    else as :func:`resolve_scale` (nothing estimated).
+
+    Raises:
+        ValueError: a string other than ``"auto"``; what those two raise.
+    """
+    if isinstance(scale, str):
+        if scale != "auto":
+            raise ValueError(f"scale must be 'auto', None, a number > 0 or one per dimension, not {scale!r}")
+        return auto_scale(space, obs_bounds)
+    return resolve_scale(space, scale, obs_bounds), np.zeros(space.shape[0], dtype=bool)  # type: ignore[index]
+
+
+def updated_scale(scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread") -> np.ndarray | None:
+    """``scale="auto"`` brought up to date: each estimated dimension becomes ``AUTO_SCALE_STDS`` standard
+    deviations of the observations counted (where that is > 0); None when nothing changes."""
+    std = AUTO_SCALE_STDS * spread.std()
+    new = np.where(estimated & (std > 0), std, scale)
+    return None if np.array_equal(new, scale) else new
+
+
+def scale_state(scale: np.ndarray, spread: "RunningSpread") -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """What a saved agent keeps of its metric: ``(meta, arrays)``, the scale in force and what
+    ``scale="auto"`` counted of the observations (mean and m2 as rows)."""
+    return ({"scale_count": spread.count},
+            {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])})
+
+
+def load_scale_state(meta: dict[str, Any], arrays: dict[str, np.ndarray], scale: np.ndarray, estimated: np.ndarray,
+                     spread: "RunningSpread") -> None:
+    """Restore what :func:`scale_state` saved into ``scale`` and ``spread`` (in place). A file from before
+    ``scale="auto"`` keeps the scale of the parameters.
+
+    Raises:
+        ValueError: a saved scale that does not fit the parameters' (shape, sign, or a dimension that is
+            not estimated but differs), or a spread of the wrong shape.
+    """
+    n = scale.shape[0]
+    saved = arrays.get("scale", scale)
+    if saved.shape != (n,) or not (saved > 0).all() or not np.array_equal(saved[~estimated], scale[~estimated]):
+        raise ValueError(f"array scale {saved.tolist()} does not fit the parameters' scale {scale.tolist()}")
+    rows = arrays.get("scale_spread", np.zeros((2, n)))
+    if rows.shape != (2, n):
+        raise ValueError(f"array scale_spread has shape {rows.shape}; expected (2, {n})")
+    spread.count = min(int(meta.get("scale_count", 0)), spread.limit)
+    spread.mean[:], spread.m2[:] = rows
+    scale[:] = saved
+
+
 def resolve_scale(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> np.ndarray:
     """The per-dimension scale of a codebook's metric: ``scale`` (a number or one per dimension), or with
     ``scale=None`` the ``high - low`` of the observation bounds (``obs_bounds`` or the space's).

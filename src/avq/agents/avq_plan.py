@@ -11,7 +11,7 @@ from gymnasium import spaces
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
-from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_scale
+from avq.agents._spaces import RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting, scale_state, updated_scale
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -34,7 +34,12 @@ class PlanningAVQ(BaseAgent):
         env: A Gymnasium environment (or registered id) with a ``Box`` observation space and
             ``Discrete`` actions.
         gamma, epsilon, v_opt, v_min, known_after, n_backups, tol: the planner's, as in
-            :class:`avq.agents.sweeping.PrioritizedSweeping`.
+            :class:`avq.agents.sweeping.PrioritizedSweeping`; and ``v_opt="auto"``, R-max's bound for a task
+            whose rewards are not known beforehand: the episode's horizon (the environment's time limit;
+            without one ``1 / (1 - gamma)``, or 1,000 steps with ``gamma = 1``) times the largest reward seen
+            so far, or 0 while no reward > 0 has been seen; brought up to date at the end of every episode
+            (it only rises; the pairs not yet known and their predecessors are backed up again). ``v_opt_`` is the
+            value in force.
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
             vector, append the observation (SPEC §3).
@@ -48,10 +53,21 @@ class PlanningAVQ(BaseAgent):
             online (the mean return per scaled distance travelled by the transitions without collision).
         memory: Aggregate transitions remembered, from which the model follows the cells as they
             change (the oldest is forgotten beyond it).
-        scale: Per-dimension scale of the metric (a number or one per dimension); None: ``high - low``
-            of the observation bounds.
+        scale: Per-dimension scale of the metric. ``"auto"`` (the default), as :class:`avq.agents.AVQSarsa`'s:
+            ``high - low`` of the bounds where they are finite, and where they are not an estimate from the
+            first ``scale_warmup`` observations (``AUTO_SCALE_STDS`` standard deviations), brought up to date
+            at the end of every episode until then; the model then follows its remembered transitions into
+            the cells of the new metric. A number or one per dimension: that scale. None: ``high - low`` of
+            the observation bounds, every one of which must be finite.
+        scale_warmup: With ``scale="auto"``: the observations from which the scale is estimated, >= 2.
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
+        split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its
+            cell, at an observation farther than ``d_min`` from every vector, ends there, and that
+            observation becomes a cell of its own (so a cell is at most about ``split_after`` steps across
+            where the agent goes, down to ``d_min``; refused growth is counted once per decision). None: off
+            (a decision lasts until the cell changes). On a task without collisions and with it off, the
+            agent keeps its first cell.
         fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers
             only), run the maze and the agent in one compiled loop: the same results as stepping the
             environment from Python, faster. False always steps the environment from Python.
@@ -70,7 +86,7 @@ class PlanningAVQ(BaseAgent):
         *,
         gamma: float = 1.0,
         epsilon: float = 0.0,
-        v_opt: float = 10.0,
+        v_opt: float | str = 10.0,
         v_min: float = -10_000.0,
         known_after: int = 1,
         n_backups: int = 100,
@@ -82,13 +98,15 @@ class PlanningAVQ(BaseAgent):
         split_threshold: float = 10.0,
         value_slope: float | None = None,
         memory: int = 100_000,
-        scale: float | Sequence[float] | None = None,
+        scale: float | Sequence[float] | str | None = "auto",
+        scale_warmup: int = 1000,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
+        split_after: int | None = None,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:
-        check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol)
+        check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol, auto_v_opt=True)
         self.d_min = check_range("d_min", d_min, 0.0, np.inf, high_open=True)
         self.collision_growth = check_bool("collision_growth", collision_growth)
         self.outcome_split = check_bool("outcome_split", outcome_split)
@@ -98,11 +116,16 @@ class PlanningAVQ(BaseAgent):
         self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
+        self.split_after = check_optional(check_int, "split_after", split_after, 1)
         self.fused = check_bool("fused", fused)
         self.scale = scale
+        self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        self._scale = resolve_scale(self.env.observation_space, scale, self.obs_bounds)
+        #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
+        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds)
+        #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
+        self._horizon = _model.horizon(self.env, self.gamma)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete("PlanningAVQ", obs_space, act_space, "there is nothing to quantize")
@@ -126,6 +149,18 @@ class PlanningAVQ(BaseAgent):
         return self._model.a.Q[: self.n_cells].copy()
 
     @property
+    def model_(self) -> _model.Model:
+        """The learned model of the cells and its planner's queue, for inspection (as
+        :attr:`avq.agents.sweeping.PrioritizedSweeping.model_`)."""
+        return self._model
+
+    @property
+    def v_opt_(self) -> float:
+        """What an untried decision is worth now (``v_opt``, or with ``"auto"`` its value so far)."""
+        return float(self._model.a.MP[_model.V_OPT]) if self._is_setup else (
+            0.0 if self.v_opt == "auto" else float(self.v_opt))
+
+    @property
     def backups_(self) -> int:
         return self._model.backups
 
@@ -143,8 +178,9 @@ class PlanningAVQ(BaseAgent):
             -1.0 if self.value_slope is None else self.value_slope)
         self._IP = np.zeros(core.N_IP, dtype=np.int64)
         self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY,
-                  core.CYCLE_SPLIT]] = (self.max_cells, self.n_backups, self.collision_growth, self.outcome_split,
-                                        self.memory, self.cycle_split)
+                  core.CYCLE_SPLIT, core.SPLIT_AFTER]] = (
+            self.max_cells, self.n_backups, self.collision_growth, self.outcome_split, self.memory, self.cycle_split,
+            0 if self.split_after is None else self.split_after)
         self._S = np.zeros(core.N_S, dtype=np.int64)
         self._F = np.zeros(core.N_F + n + 1)
         self._xs = np.zeros(n)
@@ -152,7 +188,12 @@ class PlanningAVQ(BaseAgent):
         self._mem_i = np.zeros((self.memory, 3), dtype=np.int64)
         self._mem_f = np.zeros((self.memory, 2))
         self._e_xs = np.zeros((0, n))
-        self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
+        self._model = _model.Model(self.n_actions, 0.0 if self.v_opt == "auto" else self.v_opt, self.v_min,
+                                   self.known_after, self.tol)
+        #: The largest reward seen (v_opt="auto").
+        self._r_max = -np.inf
+        #: The observations counted for scale="auto" (none: no dimension is estimated).
+        self._spread = RunningSpread(n, self.scale_warmup if self._estimated.any() else 0)
 
     def _make_room(self) -> None:
         """Room for the cells and edges one step may add (the kernels never reallocate)."""
@@ -180,6 +221,7 @@ class PlanningAVQ(BaseAgent):
         self._draws.reserve()
         if core.start(*self._arrays(), self._draws.src, x) == core.NOT_FINITE:
             self._refuse_non_finite(obs, 0.0, 0)
+        self._spread.add(x)
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
@@ -189,6 +231,8 @@ class PlanningAVQ(BaseAgent):
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         env_step, S, draws = self.env.step, self._S, self._draws
+        count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
+        r_max = self._r_max
         a = int(S[core.ACTION])
         n = 0
         while n < max_steps:
@@ -206,18 +250,36 @@ class PlanningAVQ(BaseAgent):
                           bool(truncated))
             if a == core.NOT_FINITE:
                 self._refuse_non_finite(obs, r, int(S[core.EP_STEPS]) + 1)
+            if count is not None and not count(x):
+                count = None
+            if r > r_max:
+                r_max = self._r_max = r
             if a == core.ENDED:
                 return n, True
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
+        new = updated_scale(self._scale, self._estimated, self._spread) if self._estimated.any() else None
+        if new is not None:
+            # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
+            # follows them (the codebook keeps its vectors in observation units).
+            self._scale[:] = new
+            self._inv_scale[:] = 1.0 / new
+            m = self._model.a
+            core.relocate(self._V, self._inv_scale, self._S, self._mem_x, self._mem_i, self._mem_f, self._e_xs, m.cnt,
+                          m.rsum, m.head, m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r, m.p_head, m.p_sa, m.p_edge,
+                          m.p_next, m.heap, m.hpos, m.prio, m.C, -1, -1)
+            self._S[core.GEOM] += 1
+        if self.v_opt == "auto":
+            self._model.raise_optimism(self._horizon * max(0.0, self._r_max))
         row = np.zeros(7)
         core.end_record(self._S, self._F, row)
         return episode_record(*row)
 
     # -- the fused loop (avq.agents._fused) ------------------------------------------------
     def _fused_runner(self):
-        maze = _fused.plan(self.env) if self.fused else None
+        # (The fused loops estimate no scale; the bounded mazes they run need none.)
+        maze = _fused.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
         args = _fused.maze_arguments(maze)
@@ -253,6 +315,9 @@ class PlanningAVQ(BaseAgent):
                       mem_x=self._mem_x.copy(), mem_i=self._mem_i.copy(), mem_f=self._mem_f.copy(),
                       e_xs=self._e_xs[: int(self._model.a.C[_model.N_EDGES])].copy())
         arrays.update(self._model.state_dict())
+        scale_meta, scale_arrays = scale_state(self._scale, self._spread)
+        meta.update(scale_meta, reward_max=None if self._r_max == -np.inf else self._r_max)
+        arrays.update(scale_arrays)
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -274,3 +339,6 @@ class PlanningAVQ(BaseAgent):
             raise ValueError(f"array e_xs has shape {e_xs.shape}; expected "
                              f"({int(self._model.a.C[_model.N_EDGES])}, {self._xs.shape[0]})")
         self._e_xs[: len(e_xs)] = e_xs
+        load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
+        self._r_max = -np.inf if meta.get("reward_max") is None else float(meta["reward_max"])
+        self._inv_scale[:] = 1.0 / self._scale

@@ -13,8 +13,8 @@ from numba.core.errors import TypingError
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
-from avq.agents._spaces import (AUTO_SCALE_STDS, RunningSpread, auto_scale, check_box_discrete, normalize_obs_bounds,
-                                resolve_scale)
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting, scale_state,
+                                updated_scale)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -216,13 +216,7 @@ class AVQSarsa(BaseAgent):
         super().__init__(env, seed)
         space = self.env.observation_space
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._estimated = np.zeros(space.shape[0], dtype=bool)
-        if isinstance(scale, str):
-            if scale != "auto":
-                raise ValueError(f"scale must be 'auto', None, a number > 0 or one per dimension, not {scale!r}")
-            self._scale, self._estimated = auto_scale(space, self.obs_bounds)
-        else:
-            self._scale = resolve_scale(space, scale, self.obs_bounds)
+        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -240,9 +234,8 @@ class AVQSarsa(BaseAgent):
         standard deviations of the observations counted (where that is > 0). The codebook keeps its vectors
         in observation units, so the metric re-expresses them; only the cached pairs of the merge pass depend
         on it, and a new geometry version recomputes them."""
-        spread = AUTO_SCALE_STDS * self._spread.std()
-        new = np.where(self._estimated & (spread > 0), spread, self._scale)
-        if not np.array_equal(new, self._scale):
+        new = updated_scale(self._scale, self._estimated, self._spread)
+        if new is not None:
             self._scale[:] = new
             self._inv_scale[:] = 1.0 / new
             self._S[core.GEOM] += 1
@@ -461,9 +454,9 @@ class AVQSarsa(BaseAgent):
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
         arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())  # (p, 2 + m)
-        # The metric in force, and what scale="auto" counted of the observations (mean and m2 as rows).
-        arrays.update(scale=self._scale.copy(), scale_spread=np.stack([self._spread.mean, self._spread.m2]))
-        meta["scale_count"] = self._spread.count
+        scale_meta, scale_arrays = scale_state(self._scale, self._spread)
+        meta.update(scale_meta)
+        arrays.update(scale_arrays)
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -481,17 +474,8 @@ class AVQSarsa(BaseAgent):
             born = np.concatenate([born, np.zeros((len(q), self.n_actions), dtype=np.int64)], axis=1)
         if born.shape != (len(q), 2 + self.n_actions):
             raise ValueError(f"array born has shape {born.shape}; expected ({len(q)}, {2 + self.n_actions})")
-        scale = arrays.get("scale", self._scale)  # (files from before scale="auto": the scale of the parameters)
-        if scale.shape != (n,) or not (scale > 0).all() or not np.array_equal(scale[~self._estimated],
-                                                                             self._scale[~self._estimated]):
-            raise ValueError(f"array scale {scale.tolist()} does not fit the parameters' scale {self._scale.tolist()}")
-        spread = arrays.get("scale_spread", np.zeros((2, n)))
-        if spread.shape != (2, n):
-            raise ValueError(f"array scale_spread has shape {spread.shape}; expected (2, {n})")
-        self._spread.count = min(int(meta.get("scale_count", 0)), self._spread.limit)
-        self._spread.mean[:], self._spread.m2[:] = spread
-        self._scale[:] = scale
-        self._inv_scale[:] = 1.0 / scale
+        load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
+        self._inv_scale[:] = 1.0 / self._scale
         p = len(q)
         self._ensure_capacity(p)
         self._V[:p], self._Q[:p], self._born[:p] = codebook, q, born

@@ -34,13 +34,13 @@ from avq.agents.sweeping import PrioritizedSweeping
 from avq.agents.tabular import TabularSarsa
 from avq.agents.tiles import TileSarsa
 
-__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "SUMMARIES", "TASK_DEFAULTS", "agent_defaults",
-           "defaults_key", "make_agent"]
+__all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "SUMMARIES", "TASK_CLASSES",
+           "TASK_DEFAULTS", "agent_class", "agent_defaults", "defaults_key", "make_agent"]
 
-#: name -> the agent's class.
+#: name -> the agent's class (for ``avq``: its class everywhere but the environments of :data:`TASK_CLASSES`).
 CLASSES: dict[str, type[BaseAgent]] = {
-    "avq-paper": AVQSarsa, "avq": AVQSarsa, "avq-maze": AVQSarsa, "tabular": TabularSarsa, "grid": GridSarsa,
-    "tiles": TileSarsa, "tabular-ps": PrioritizedSweeping, "grid-ps": PrioritizedSweeping,
+    "avq-paper": AVQSarsa, "avq": PlanningAVQ, "avq-sarsa": AVQSarsa, "avq-maze": AVQSarsa, "tabular": TabularSarsa,
+    "grid": GridSarsa, "tiles": TileSarsa, "tabular-ps": PrioritizedSweeping, "grid-ps": PrioritizedSweeping,
     "avq-plan": PlanningAVQ,
     "avq-actions": ActionCodebookSarsa, "uniform-actions": ActionCodebookSarsa,
 }
@@ -55,6 +55,16 @@ _AVQ_MAZE = dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.5, rho=200
                  traces="replacing", merge_every=1, value_trigger=None, scale=1.0, collision_split=True,
                  merge_same_action=False, merge_pairs="nearest", max_cells=30)
 
+# avq-plan on the mazes (below).
+_PLAN_MAZE = dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=0.01,
+                  d_min=0.02, collision_growth=True, outcome_split=True, cycle_split=False, split_threshold=10.0,
+                  value_slope=None, memory=100_000, scale=None, max_cells=10_000)
+
+# avq-plan on tasks without collisions, and avq there (below).
+_PLAN_GENERAL = dict(gamma=1.0, epsilon=0.0, v_opt="auto", v_min=-10_000.0, known_after=2, n_backups=100, tol=0.01,
+                     d_min=0.05, collision_growth=True, outcome_split=True, cycle_split=False, split_threshold=10.0,
+                     value_slope=None, memory=100_000, scale="auto", max_cells=2048, split_after=5)
+
 #: name -> {"*": its defaults, environment id: the defaults that replace them (all of them) there}.
 DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's rules exactly: collision trigger only, plain Euclidean metric
@@ -63,19 +73,9 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
         "*": dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.0, rho=5.0, chi=-50.0,
                   q_init=5.0, traces="replacing", merge_every=1, value_trigger=None, scale=1.0),
     },
-    # AVQ for any task: collisions when the env reports them, plus the value-change trigger
-    # (SPEC §3) so that tasks without collisions grow a partition too; a merge guard so that
-    # value-triggered cells (copies of their parent) get time to differ before a merge pass.
-    # Metric scaled by the observation bounds, and where they are not finite by the spread of the first
-    # observations (scale="auto"; obs_bounds= wins for the dimensions it bounds).
-    # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
-    # A budget of 2048 cells, half of tiles' 4096 features, and one decision per cell repeated until the cell
-    # changes (max_repeat None), chosen by scripts/tune_general.py (docs/RESULTS.md, "The general avq agent:
-    # repeating a decision, and a budget of cells"; 300 episodes, seeds 0-2, confirmed on 10-14): on CartPole-v1
-    # and MountainCar-v0 the partition stays under 700 cells (881 in 500 episodes) and the budget changes
-    # nothing; on Acrobot-v1 growth never stops (7,000-10,000 cells, at 10 times the wall time) while learning
-    # little (-434 median against -486 at 2048 and -497 for a random policy). Bounding a decision to 1-8 steps
-    # cost on MountainCar (-197 to -148 against -143) and helped nowhere clearly.
+    # AVQ, our best: on tasks without collisions (classic control) the planning agent with its general defaults
+    # (avq-plan's "*", below: docs/RESULTS.md, "The general agent on classic control"); on the mazes the model-free
+    # maze rules (the class there is AVQSarsa: TASK_CLASSES).
     #
     # On the grid maze, ``avq`` is ``avq-maze`` plus the cycle split and a decaying exploration rate (ε 0.2,
     # times 0.995 per episode, down to 0.01). Chosen on 150 seeds of ``lau2002`` and 100 generated mazes, among
@@ -84,14 +84,30 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # mean success 0.980 (0.978, 0.970), 0.869 on the generated mazes (0.855, 0.842), in about 17.3k env steps
     # (20.5k, 21.5k; tabular 17.5k). On RobotMaze the cycle split cost success (0.52 against 0.61, 300 episodes,
     # 10 seeds), and the 30-cell cap is the grid maze's budget, so there ``avq`` is ``avq-maze`` without the cap
-    # (the general ``avq`` reached 0.24, ``tiles`` 0.85).
+    # (the general ``avq-sarsa`` reached 0.24, ``tiles`` 0.85).
     "avq": {
-        "*": dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
-                  q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
-                  reward_trigger=None, scale="auto", max_cells=2048, max_repeat=None),
+        "*": _PLAN_GENERAL,
         "avq/GridMaze-v0": {**_AVQ_MAZE, "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
                             "epsilon_min": 0.01},
         "avq/RobotMaze-v0": {**_AVQ_MAZE, "max_cells": 10_000},
+    },
+    # AVQ Sarsa(λ) for any task (``avq``'s general defaults before the planning agent replaced them): collisions
+    # when the env reports them, plus the value-change trigger (SPEC §3) so that tasks without collisions grow a
+    # partition too; a merge guard so that value-triggered cells (copies of their parent) get time to differ
+    # before a merge pass. Metric scaled by the observation bounds, and where they are not finite by the spread
+    # of the first observations (scale="auto"; obs_bounds= wins for the dimensions it bounds).
+    # Chosen by scripts/sweep_avq_defaults.py (docs/RESULTS.md, "The general avq agent").
+    # A budget of 2048 cells, half of tiles' 4096 features, and one decision per cell repeated until the cell
+    # changes (max_repeat None), chosen by scripts/tune_general.py (docs/RESULTS.md, "The general avq agent:
+    # repeating a decision, and a budget of cells"; 300 episodes, seeds 0-2, confirmed on 10-14): on CartPole-v1
+    # and MountainCar-v0 the partition stays under 700 cells (881 in 500 episodes) and the budget changes
+    # nothing; on Acrobot-v1 growth never stops (7,000-10,000 cells, at 10 times the wall time) while learning
+    # little (-434 median against -486 at 2048 and -497 for a random policy). Bounding a decision to 1-8 steps
+    # cost on MountainCar (-197 to -148 against -143) and helped nowhere clearly.
+    "avq-sarsa": {
+        "*": dict(alpha=0.3, lam=0.7, gamma=1.0, epsilon=0.05, d_min=0.05, rho=0.1, chi=-50.0,
+                  q_init=0.0, traces="replacing", merge_every=1, merge_age=5, value_trigger=1.0,
+                  reward_trigger=None, scale="auto", max_cells=2048, max_repeat=None),
     },
     "avq-maze": {"*": _AVQ_MAZE},
     "tabular": {
@@ -110,17 +126,22 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
                   bins=10, obs_bounds=None),
     },
     # AVQ with a model of its cells and planning over it (docs/RESULTS.md, "Planning over the partition").
-    # Explored on lau2002 refined k = 1, 2, 4 and two generated mazes (sides 22, 42), seeds 0-9: collision
-    # growth and the outcome split both on (without either, 1.5-2x the steps or failures); gamma 1 (0.99 and
-    # 0.95 took more steps); 100 backups a step (1000: about the same steps for 4x the backups; 10: a
+    # On the mazes: explored on lau2002 refined k = 1, 2, 4 and two generated mazes (sides 22, 42), seeds 0-9:
+    # collision growth and the outcome split both on (without either, 1.5-2x the steps or failures); gamma 1
+    # (0.99 and 0.95 took more steps); 100 backups a step (1000: about the same steps for 4x the backups; 10: a
     # failure); split_threshold 10 (5: cells 4.8x from k=1 to k=4, 10: 3.6x, and 1.17x tabular-ps's steps
     # at k=4 against 1.4x; 20 failed 2 of 50 runs). tol 0.01 (1e-6 left a tail of tiny changes circling the
     # aggregated model's cycles: 44 backups a step once learned on lau2002 against 0.8, at 0.09 M steps/s
     # against 0.63 M, with no fewer env steps on lau2002 k = 2, 4 and a generated maze of side 22).
+    #
+    # Elsewhere (tasks without collisions): a decision that stays split_after steps in its cell grows a cell
+    # there, optimism from the rewards seen (v_opt "auto"), the metric estimated where the bounds are not
+    # finite (scale "auto") and a budget of 2048 cells. Chosen by scripts/tune_plan_general.py
+    # (docs/RESULTS.md, "The general agent on classic control").
     "avq-plan": {
-        "*": dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=0.01,
-                  d_min=0.02, collision_growth=True, outcome_split=True, cycle_split=False, split_threshold=10.0, value_slope=None, memory=100_000,
-                  scale=None, max_cells=10_000),
+        "*": _PLAN_GENERAL,
+        "avq/GridMaze-v0": _PLAN_MAZE,
+        "avq/RobotMaze-v0": _PLAN_MAZE,
     },
     # The baselines. Their defaults were chosen by a quick measurement, described here with its
     # figures (the script is not in the repository): MountainCar-v0 (200-step limit) and CartPole-v1
@@ -182,12 +203,17 @@ SUMMARIES: dict[str, str] = {
                  "metric (`scale` 1: `d_min` in the environment's units), and a merge pass of mutually nearest cells "
                  "with similar action values after every trial (SPEC §4). On a task that reports no collisions it keeps "
                  "one cell: use `avq` there.",
-    "avq": "AVQ, our best settings. On `avq/GridMaze-v0`: the rules of `avq-maze`, plus a split where two greedy "
-           "decisions cycle between two cells (`cycle_split`) and a decaying exploration rate (`epsilon_decay`); on "
-           "`avq/RobotMaze-v0`: `avq-maze` without its budget of cells. Elsewhere: growth on collisions when the task "
-           "reports them and where an action value changes by more than `value_trigger`, a merge-age guard "
-           "(`merge_age`), and the metric scaled by the observation bounds, estimated from the observations where they "
-           "are not finite (`scale` \"auto\"; `obs_bounds=` wins), and a budget of 2048 cells (`max_cells`).",
+    "avq": "AVQ, our best settings. On tasks without collisions (classic control, any `Box` task): the planning agent "
+           "of `avq-plan` with its general defaults: a learned model of the cells, R-max optimism from the rewards seen "
+           "(`v_opt` \"auto\"), growth where a decision stays `split_after` steps in its cell and where outcomes "
+           "disagree (`outcome_split`), the metric estimated where the bounds are not finite (`scale` \"auto\"), and a "
+           "budget of 2048 cells. On `avq/GridMaze-v0`: Sarsa(λ) with the rules of `avq-maze`, plus a split where two "
+           "greedy decisions cycle between two cells (`cycle_split`) and a decaying exploration rate "
+           "(`epsilon_decay`); on `avq/RobotMaze-v0`: `avq-maze` without its budget of cells.",
+    "avq-sarsa": "AVQ Sarsa(λ) for any task (the general `avq` before the planning agent): growth on collisions when the "
+                 "task reports them and where an action value changes by more than `value_trigger`, a merge-age guard "
+                 "(`merge_age`), the metric scaled by the observation bounds, estimated from the observations where "
+                 "they are not finite (`scale` \"auto\"; `obs_bounds=` wins), and a budget of 2048 cells.",
     "avq-maze": "AVQ beyond the paper, for tasks that report collisions: the paper's rules, plus a split where a cell's "
                 "greedy action hits a wall (`collision_split`), merging of nearest pairs (`merge_pairs`), and a budget "
                 "of cells (`max_cells`).",
@@ -203,7 +229,9 @@ SUMMARIES: dict[str, str] = {
                "model on continuous mazes.",
     "avq-plan": "AVQ's cells and decisions (one per cell, repeated until the cell changes) with a learned model of the "
                 "cells (one decision an SMDP step), the planner of `tabular-ps`, and cells split where a decision's "
-                "outcomes disagree beyond what distance explains (`outcome_split`, `split_threshold`).",
+                "outcomes disagree beyond what distance explains (`outcome_split`, `split_threshold`). On the mazes: "
+                "growth on collisions; elsewhere, the general defaults that `avq` uses there (`split_after`, `v_opt` "
+                "\"auto\").",
     "avq-actions": "For continuous (`Box`) actions: the learner of `tiles` over an adaptive codebook of actions, from "
                    "`init_actions` values per action dimension, that grows (a midpoint next to the most used action) "
                    "and merges (similar value columns) every `adapt_every` episodes.",
@@ -211,6 +239,11 @@ SUMMARIES: dict[str, str] = {
                        "(`fixed`): the baseline for `avq-actions`.",
 }
 
+
+#: name -> {environment id -> the agent's class there}, where it is not :data:`CLASSES`' (``avq`` on the mazes).
+TASK_CLASSES: dict[str, dict[str, type[BaseAgent]]] = {
+    "avq": {"avq/GridMaze-v0": AVQSarsa, "avq/RobotMaze-v0": AVQSarsa},
+}
 
 #: name -> (class, its ``"*"`` defaults): a view of :data:`avq.agents.registry.DEFAULTS`.
 AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {name: (CLASSES[name], table["*"])
@@ -248,6 +281,13 @@ def defaults_key(name: str, env_id: str | None = None) -> str:
     if name not in DEFAULTS:
         raise ValueError(f"unknown agent {name!r}; known agents: {', '.join(sorted(DEFAULTS))}")
     return env_id if env_id is not None and env_id != "*" and env_id in DEFAULTS[name] else "*"
+
+
+def agent_class(name: str, env_id: str | None = None) -> type[BaseAgent]:
+    """The class of agent ``name`` on environment ``env_id``: :data:`CLASSES`' unless :data:`TASK_CLASSES` names
+    another there (``avq`` is the planning agent on tasks without collisions, and Sarsa(λ) on the mazes)."""
+    key = defaults_key(name, env_id)  # (an unknown name raises here)
+    return TASK_CLASSES.get(name, {}).get(key, CLASSES[name])
 
 
 def agent_defaults(name: str, env_id: str | None = None) -> dict[str, Any]:
@@ -295,7 +335,7 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     """
     env_id = _env_id(env)
     key = defaults_key(name, env_id)  # (an unknown name raises here)
-    cls = CLASSES[name]
+    cls = agent_class(name, env_id)
     if "seed" in overrides:
         raise ValueError("seed is not an agent parameter here: pass it as seed= (on the command line, --seed)")
     valid = set(cls._param_names()) - {"seed"}
@@ -322,16 +362,23 @@ def _reference() -> str:
              "`avq.agents.registry.DEFAULTS`; a value the entry leaves out is the class's own default, marked "
              "*(class)*. Explicit parameters given to `avq.agents.registry.make_agent` win."]
     for name, table in DEFAULTS.items():
-        cls = CLASSES[name]
-        signature = inspect.signature(cls.__init__).parameters
+        classes = {key: agent_class(name, key) for key in table}
+        signatures = {key: inspect.signature(cls.__init__).parameters for key, cls in classes.items()}
         rows = list(dict.fromkeys(key for entry in table.values() for key in entry))
         head = " | ".join(f"`{key}`" if key != "*" else "everywhere (`\"*\"`)" for key in table)
         lines = [f"| parameter | {head} |", "|---|" + "---|" * len(table)]
         for param in rows:
-            cells = [f"`{entry[param]!r}`" if param in entry else f"`{signature[param].default!r}` *(class)*"
-                     for entry in table.values()]
+            cells = [f"`{entry[param]!r}`" if param in entry else
+                     f"`{signatures[key][param].default!r}` *(class)*" if param in signatures[key] else "-"
+                     for key, entry in table.items()]
             lines.append(f"| `{param}` | " + " | ".join(cells) + " |")
-        parts.append(f"### {name}\n\n{SUMMARIES[name]}\n\nClass: `avq.agents.{cls.__name__}`.\n\n" + "\n".join(lines))
+        if len(set(classes.values())) == 1:
+            which = f"Class: `avq.agents.{CLASSES[name].__name__}`."
+        else:
+            which = "Class: " + "; ".join(f"`avq.agents.{cls.__name__}` " + ("everywhere else" if key == "*" else
+                                                                             f"on `{key}`")
+                                          for key, cls in sorted(classes.items(), key=lambda kv: kv[0] == "*")) + "."
+        parts.append(f"### {name}\n\n{SUMMARIES[name]}\n\n{which}\n\n" + "\n".join(lines))
     return "\n\n".join(parts) + "\n"
 
 

@@ -1,0 +1,141 @@
+"""``avq-plan`` on tasks without collisions: growth where a decision stays too long in its cell
+(``split_after``), R-max's optimism from the rewards seen (``v_opt="auto"``) and the metric estimated from the
+observations (``scale="auto"``), each set up by hand with the numbers written out; saved and resumed exactly."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import avq
+from avq.agents import _model
+from avq.agents import _plan_core as core
+
+from conftest import ScriptedEnv
+
+NO = False
+
+
+def walk(xs, last_reward=-1.0):
+    """A 1-D episode through the positions ``xs`` (reward -1 a step), ending at the last."""
+    return [((x,), last_reward if k == len(xs) - 1 else -1.0, k == len(xs) - 1, NO, NO) for k, x in enumerate(xs)]
+
+
+def line_agent(steps, **kw):
+    params = dict(scale=1.0, d_min=0.5, collision_growth=False, outcome_split=False, split_after=3, seed=0)
+    params.update(kw)
+    return avq.PlanningAVQ(ScriptedEnv([((0.0,), steps)], n_actions=1, dims=1), **params)
+
+
+#: From x = 0: three steps in cell 0 (the third 1.0 away, beyond d_min 0.5), three more that stay within d_min
+#: of x = 1, one to 2.0 (the fourth step of that decision), and the end at 2.1.
+LINE = walk([0.1, 0.2, 1.0, 1.1, 1.2, 1.3, 2.0, 2.1])
+
+
+def test_a_decision_that_stays_split_after_steps_in_its_cell_gives_the_observation_a_cell():
+    agent = line_agent(LINE).learn(total_episodes=1)
+    assert agent.codebook_.ravel().tolist() == [0.0, 1.0, 2.0]
+    # The transitions: 0 -> 1 (3 steps), 1 -> 2 (4 steps: x = 1.1-1.3 lie within d_min of 1.0, so the decision
+    # went on past split_after), 2 -> the end (1 step).
+    assert agent._mem_i[:3].tolist() == [[0, 0, 1], [0, 1, 2], [0, 2, -1]]
+    assert agent._mem_f[:3, 0].tolist() == [-3.0, -4.0, -1.0]
+    h = agent.episode_history()
+    assert h["decisions"].tolist() == [3] and h["n_cells"].tolist() == [3] and h["refused"].tolist() == [0]
+
+
+def test_without_split_after_a_task_without_collisions_keeps_one_cell():
+    agent = line_agent(LINE, split_after=None).learn(total_episodes=1)
+    assert agent.n_cells == 1 and agent.episode_history()["decisions"].tolist() == [1]
+
+
+def test_at_the_budget_the_growth_is_refused_once_per_decision():
+    agent = line_agent(LINE, max_cells=2).learn(total_episodes=1)
+    assert agent.codebook_.ravel().tolist() == [0.0, 1.0]
+    h = agent.episode_history()
+    # The second decision reaches its third step at 1.3 (within d_min: no growth asked), then at 2.0 (its
+    # fourth step) asks and is refused; 2.1 is its fifth step, not counted again.
+    assert h["refused"].tolist() == [1] and h["decisions"].tolist() == [2]
+
+
+def test_split_after_is_checked():
+    env = ScriptedEnv([((0.0,), LINE)], n_actions=1, dims=1)
+    with pytest.raises(ValueError, match="split_after must be an integer >= 1 or None, not 0"):
+        avq.PlanningAVQ(env, split_after=0)
+
+
+# -- v_opt="auto" -------------------------------------------------------------------------------------
+
+def test_the_horizon_is_the_time_limit_else_one_over_one_minus_gamma():
+    assert _model.horizon(gym.make("CartPole-v1"), 1.0) == 500.0
+    env = ScriptedEnv([((0.0,), LINE)], n_actions=1, dims=1)  # (no time limit)
+    assert _model.horizon(env, 0.9) == pytest.approx(10.0)
+    assert _model.horizon(env, 1.0) == _model.UNLIMITED_HORIZON
+
+
+def test_auto_optimism_is_the_horizon_times_the_largest_reward_seen():
+    # Two actions, gamma 0.9 (horizon 10), one episode whose rewards are -1 then 2: untried pairs are worth
+    # 0 during it (no reward > 0 seen yet), then 10 * 2 = 20.
+    steps = walk([0.1, 0.2, 1.0, 1.1], last_reward=2.0)
+    agent = avq.PlanningAVQ(ScriptedEnv([((0.0,), steps)], n_actions=2, dims=1), scale=1.0, d_min=0.5, gamma=0.9,
+                            v_opt="auto", collision_growth=False, outcome_split=False, split_after=3, seed=0)
+    assert agent.v_opt_ == 0.0
+    agent.learn(total_episodes=1)
+    assert agent.v_opt_ == pytest.approx(20.0)
+    m = agent.model_.a
+    untried = m.cnt[: agent.n_cells] < 1
+    assert untried.any() and np.allclose(agent.q_[untried], 20.0)
+
+
+def test_all_negative_rewards_keep_auto_optimism_at_zero():
+    agent = line_agent(LINE, v_opt="auto").learn(total_episodes=2)
+    assert agent.v_opt_ == 0.0
+
+
+def test_raising_optimism_reaches_the_predecessors_of_an_untried_state():
+    # States 0 -> 1 by action 0 (return -1, gamma^k 1); state 1 untried. Q[0, 0] = -1 + V(1) = -1 + v_opt.
+    mdl = _model.Model(2, 0.0, -100.0, 1, 1e-9)
+    for _ in range(2):
+        mdl.add_state()
+    mdl.reserve(edges=1)
+    _model.observe(*mdl.a, 0, 0, -1.0, 1.0, 1, 100)
+    assert mdl.a.Q[0, 0] == -1.0
+    mdl.raise_optimism(5.0)
+    mdl.sweep(100)
+    assert mdl.a.Q[0, 0] == 4.0 and mdl.a.Q[0, 1] == 5.0 and mdl.a.V[1] == 5.0
+    mdl.raise_optimism(3.0)  # (it only rises)
+    assert mdl.a.MP[_model.V_OPT] == 5.0
+
+
+def test_bad_v_opt_gets_a_clear_error():
+    with pytest.raises(ValueError, match="v_opt must be .* or 'auto', not 'lots'"):
+        avq.make_agent("avq-plan", "CartPole-v1", v_opt="lots")
+    with pytest.raises(ValueError, match="v_opt must be"):
+        avq.make_agent("tabular-ps", "avq/GridMaze-v0", v_opt="auto")  # (auto is avq-plan's alone)
+
+
+# -- scale="auto" -------------------------------------------------------------------------------------
+
+def test_the_model_follows_its_transitions_into_the_cells_of_the_new_metric():
+    agent = avq.make_agent("avq-plan", "CartPole-v1", seed=0, scale_warmup=400).learn(total_episodes=40)
+    assert agent.get_params()["obs_bounds"] is None
+    n, size = 4, agent.n_cells
+    t = int(agent._S[core.MEM_N])
+    assert agent.n_cells > 1 and t > 0
+    starts, ends = agent._mem_x[:t, :n], agent._mem_x[:t, n:]
+    assert np.array_equal(agent._mem_i[:t, 1], agent.cells(starts))
+    live = agent._mem_i[:t, 2] >= 0
+    assert np.array_equal(agent._mem_i[:t, 2][live], agent.cells(ends[live]))
+    # The model's counts are those of the remembered transitions in their current cells.
+    counts = np.zeros((size, agent.n_actions), dtype=np.int64)
+    np.add.at(counts, (agent._mem_i[:t, 1], agent._mem_i[:t, 0]), 1)
+    assert np.array_equal(agent.model_.a.cnt[:size], counts)
+
+
+@pytest.mark.parametrize("first", [3, 30])  # saved during the warm-up (400 observations), and after it
+def test_avq_plan_resumes_exactly_on_a_task_without_bounds(tmp_path, first):
+    make = lambda: avq.make_agent("avq-plan", "CartPole-v1", seed=2, scale_warmup=400)  # noqa: E731
+    whole = make().learn(total_episodes=40)
+    part = make().learn(total_episodes=first)
+    loaded = avq.load(part.save(tmp_path / "m.zip")).learn(total_episodes=40 - first)
+    assert np.array_equal(loaded.scale_, whole.scale_) and loaded.v_opt_ == whole.v_opt_
+    assert np.array_equal(loaded.codebook_, whole.codebook_) and np.array_equal(loaded.q_, whole.q_)
+    assert loaded.episode_history()["return"].tolist() == whole.episode_history()["return"].tolist()
