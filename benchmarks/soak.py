@@ -1,7 +1,7 @@
 """Soak run: does the ``avq`` agent stay bounded over millions of steps on RobotMaze?
 
-Trains ``avq.AVQSarsa(gymnasium.make("avq/RobotMaze-v0"), seed=SEED, **avq.AGENTS["avq"][1])``
-(the general agent, with the value-change trigger, rather than the maze rules ``avq`` takes there)
+Trains ``avq.AVQSarsa(gymnasium.make("avq/RobotMaze-v0"), seed=SEED, **avq.AGENTS["avq-sarsa"][1])``
+(the general Sarsa(λ) agent, with the value-change trigger, rather than the maze rules ``avq`` takes there)
 by calling ``agent.learn(total_timesteps=EVERY)`` again and again (``learn`` continues where it stopped) and, after every call, records:
 
 - primitive steps and finished episodes so far, wall seconds, steps per second of the chunk;
@@ -48,7 +48,7 @@ import avq
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV_ID = "avq/RobotMaze-v0"
-AGENT = "avq"
+AGENT = "avq-sarsa"
 MB = 1024.0 * 1024.0
 PAGE = os.sysconf("SC_PAGE_SIZE")
 

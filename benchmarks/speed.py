@@ -322,10 +322,10 @@ def main() -> None:
     print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")
     print(f"   {'env':<18} {'agent':<10} {'k steps/s':>10} {'env only':>10} {'ratio':>6} {'agent µs/step':>14}")
     n = int(100_000 * scale)
-    for env_id, name in (("bench/CopyMaze-v0", "avq-paper"), ("bench/CopyMaze-v0", "avq"),
+    for env_id, name in (("bench/CopyMaze-v0", "avq-paper"), ("bench/CopyMaze-v0", "avq-sarsa"),
                          ("bench/CopyMaze-v0", "tabular"), ("bench/CopyMaze-v0", "avq-plan"),
-                         ("bench/CopyMaze-v0", "tabular-ps"), ("MountainCar-v0", "avq"), ("MountainCar-v0", "tiles"),
-                         ("MountainCar-v0", "grid"), ("avq/RobotMaze-v0", "avq")):
+                         ("bench/CopyMaze-v0", "tabular-ps"), ("MountainCar-v0", "avq"), ("MountainCar-v0", "avq-sarsa"),
+                         ("MountainCar-v0", "tiles"), ("MountainCar-v0", "grid"), ("avq/RobotMaze-v0", "avq")):
         sps, base = paired_generic(name, env_id, n, reps=3 if args.quick else 5)
         work = (1 / sps - 1 / base) * 1e6
         print(f"   {env_id:<18} {name:<10} {sps / 1e3:>10.1f} {base / 1e3:>10.1f} {sps / base:>6.0%} {work:>14.2f}")

@@ -53,11 +53,16 @@ def test_train_says_which_defaults_it_took(tmp_path, capsys):
     assert capsys.readouterr().out.splitlines()[0] == (
         "agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
         "(avq.agents.registry.DEFAULTS['avq']['avq/GridMaze-v0']); explicit: none")
-    assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "alpha=0.2", "--out",
+    assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "d_min=0.2", "--out",
                  str(tmp_path / "car"), "--no-progress"]) == 0
     assert capsys.readouterr().out.splitlines()[0] == (
         "agent avq on MountainCar-v0: the general defaults of avq (avq.agents.registry.DEFAULTS['avq']['*']); "
-        "explicit: alpha=0.2")
+        "explicit: d_min=0.2")
+    # avq's class depends on the task: a parameter of the maze agent is refused elsewhere, naming the class.
+    assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "alpha=0.2", "--out",
+                 str(tmp_path / "bad"), "--no-progress"]) == 2
+    assert capsys.readouterr().err.startswith(
+        "avq: error: unknown parameter 'alpha' for agent 'avq' on MountainCar-v0 (class PlanningAVQ); its parameters: ")
 
 
 def test_rerunning_from_config_gives_the_same_model(tmp_path):

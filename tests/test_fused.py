@@ -8,10 +8,9 @@ from gymnasium.wrappers import RecordEpisodeStatistics
 import avq
 
 
-#: The general avq defaults, which ``make_agent("avq", maze)`` replaces with the maze defaults (the maze
-#: options set back to the class's defaults).
-GENERAL = ("avq", {**avq.AGENTS["avq"][1], "collision_split": False, "cycle_split": False, "merge_pairs": "mutual",
-                   "max_cells": 10_000})
+#: The general Sarsa(λ) defaults (``avq-sarsa``: the value-change trigger, the maze options at the class's
+#: defaults), with the budget of before.
+GENERAL = ("avq-sarsa", {"max_cells": 10_000})
 #: Every rule of the kernels: the paper's, the maze defaults (with the splits), the general defaults.
 VARIANTS = [("avq-paper", {}), ("avq", {}), GENERAL]
 

@@ -342,12 +342,16 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     unknown = sorted(set(overrides) - valid)
     planning = [p for p in unknown if p in PLANNING_PARAMS]
     if planning:
-        with_model = ", ".join(repr(n) for n, c in CLASSES.items() if set(PLANNING_PARAMS) <= set(c._param_names()))
+        plans = lambda n: set(PLANNING_PARAMS) <= set(agent_class(n, env_id)._param_names())  # noqa: E731
+        with_model = ", ".join(repr(n) for n in CLASSES if plans(n))
+        where = f" on {env_id or 'this environment'}" if name in TASK_CLASSES else ""
         raise ValueError(f"{planning[0]!r} is an option of planning over a learned model, and agent {name!r} has no "
-                         f"model; the agents that plan are {with_model}")
+                         f"model{where}; the agents that plan{where} are {with_model}")
     if unknown:
         raise ValueError(
-            f"unknown parameter {unknown[0]!r} for agent {name!r}; its parameters: {', '.join(sorted(valid))}"
+            f"unknown parameter {unknown[0]!r} for agent {name!r}"
+            + (f" on {env_id or 'this environment'} (class {cls.__name__})" if name in TASK_CLASSES else "")
+            + f"; its parameters: {', '.join(sorted(valid))}"
         )
     agent = cls(env, **{**DEFAULTS[name][key], **overrides, "seed": seed})
     agent.defaults_used = DefaultsUsed(name, env_id, key, dict(overrides))
