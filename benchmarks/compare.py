@@ -217,6 +217,30 @@ def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
     return lines
 
 
+def previous_rows(out: Path) -> list[dict]:
+    """The rows of an earlier run in ``out`` (``data/compare.csv`` with the curves of ``data/compare_curves.json``),
+    their numbers as :func:`summarize` gives them."""
+    curves = {(c["task"], c["agent"], int(c["seed"])): c["curve"]
+              for c in json.loads((out / "data" / "compare_curves.json").read_text())}
+    rows = []
+    with open(out / "data" / "compare.csv", newline="") as f:
+        for r in csv.DictReader(f):
+            row: dict = {}
+            for k, v in r.items():
+                if v == "":
+                    row[k] = None
+                elif k in ("task", "agent"):
+                    row[k] = v
+                else:
+                    number = float(v)
+                    row[k] = int(number) if number.is_integer() and k not in ("final_return", "greedy_return",
+                                                                              "greedy_success", "threshold",
+                                                                              "wall_s") else number
+            row["curve"] = curves[(row["task"], row["agent"], row["seed"])]
+            rows.append(row)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10, help="how many seeds: FIRST_SEED .. FIRST_SEED + SEEDS - 1")
@@ -225,18 +249,26 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs")
     ap.add_argument("--tasks", default=",".join(TASKS))
-    ap.add_argument("--agents", default=",".join(AGENTS), help=f"agent names, and {RANDOM!r} (added if left out)")
+    ap.add_argument("--agents", default=",".join(AGENTS), help=f"agent names, and {RANDOM!r} (added if left out, but with --update)")
+    ap.add_argument("--update", action="store_true",
+                    help="keep the rows of OUT/data/compare.csv for the tasks and agents not run now, and write the "
+                         "tables and figures of them all (the same seeds)")
     args = ap.parse_args()
     out = Path(args.out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "data").mkdir(parents=True, exist_ok=True)
     tasks = [t for t in args.tasks.split(",") if t]
     agents = [a for a in args.agents.split(",") if a]
-    agents += [RANDOM] if RANDOM not in agents else []
+    agents += [RANDOM] if RANDOM not in agents and not args.update else []  # (--update: random's rows are kept)
     jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale))) for t in tasks for a in agents
             if a not in SAME_AS.get(t, {}) for s in range(args.first_seed, args.first_seed + args.seeds)]
     t0 = time.perf_counter()
     rows = Parallel(n_jobs=args.jobs, verbose=5)(delayed(run_one)(*j) for j in jobs)
+    if args.update:
+        kept = [r for r in previous_rows(out) if (r["task"], r["agent"]) not in {(t, a) for t, a, _, _ in jobs}]
+        rows = kept + rows
+        tasks = list(dict.fromkeys([t for t in TASKS if any(r["task"] == t for r in rows)]))
+        agents = list(dict.fromkeys([a for a in (*AGENTS, RANDOM) if any(r["agent"] == a for r in rows)]))
     mc = Parallel(n_jobs=args.jobs)(delayed(mountain_car_check)(s)
                                     for s in range(args.first_seed, args.first_seed + args.seeds)) \
         if "MountainCar-v0" in tasks else []

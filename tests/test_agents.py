@@ -153,7 +153,7 @@ def test_avq_scale_from_bounds_and_unbounded_dimension_error():
         AVQSarsa(gym.make("CartPole-v1"), scale=None)
     AVQSarsa(gym.make("CartPole-v1"), scale=[1.0, 1.0, 1.0, 1.0])
     AVQSarsa(gym.make("CartPole-v1"))  # scale="auto": estimated for the unbounded dimensions
-    with pytest.raises(ValueError, match="scale must be 'auto', None, a number > 0 or one per dimension, not 'atuo'"):
+    with pytest.raises(ValueError, match="scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not 'atuo'"):
         AVQSarsa(gym.make("CartPole-v1"), scale="atuo")
 
 

@@ -141,3 +141,19 @@ def test_a_model_file_with_a_scale_that_does_not_fit_is_refused(tmp_path):
 def test_the_papers_scale_stays_one(name):
     agent = make_agent(name, "CartPole-v1", seed=0).learn(total_episodes=3)
     assert agent.scale_.tolist() == [1.0, 1.0, 1.0, 1.0]
+
+
+def test_spread_estimates_every_dimension_but_those_obs_bounds_bounds(scripted):
+    # scale="spread": dimension 0 is bounded by the space ([-1, 1]) and still estimated; the space's range is only
+    # the start (and dimension 1, unbounded, starts at 1), until the first episode ends.
+    env = half_bounded(scripted, [((0.0, 0.0), [step(0.5, 2.0), step(0.0, -1.0, end=True)])])
+    agent = AVQSarsa(env, scale="spread", scale_warmup=3, value_trigger=None, merge_every=0, seed=0)
+    assert agent.scale_.tolist() == [2.0, 1.0]
+    agent.learn(total_episodes=1)
+    assert agent.scale_ == pytest.approx([4 * np.std([0.0, 0.5, 0.0]), 4 * np.std([0.0, 2.0, -1.0])], rel=1e-12)
+    # obs_bounds wins for the dimension it bounds; the others are estimated.
+    given = AVQSarsa(env, scale="spread", obs_bounds=[[-3.0, 3.0], None], scale_warmup=3, value_trigger=None,
+                     merge_every=0, seed=0).learn(total_episodes=1)
+    assert given.scale_[0] == 6.0 and given.scale_[1] == pytest.approx(4 * np.std([0.0, 2.0, -1.0]), rel=1e-12)
+    with pytest.raises(ValueError, match="scale must be 'auto', 'spread', None"):
+        AVQSarsa(env, scale="wide")

@@ -2,6 +2,7 @@
 
 import csv
 import importlib.util
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -53,3 +54,25 @@ def test_a_tiny_run_writes_its_rows_table_and_figure(tmp_path):
     assert "| CartPole-v1 | random |" in table and "Cells over time" in table and "Mountain Car check" not in table
     assert "| CartPole-v1 | avq |" in table.split("seeds above random")[1]
     assert (tmp_path / "figures" / "compare_CartPole-v1.png").stat().st_size > 10_000
+
+
+def test_update_reruns_some_agents_and_keeps_the_rows_of_the_others(tmp_path):
+    def compare(*args):
+        out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",
+                              "--seeds", "2", "--scale", "0.01", "--jobs", "1", "--out", str(tmp_path), *args],
+                             capture_output=True, text=True, timeout=600)
+        assert out.returncode == 0, out.stderr
+        with open(tmp_path / "data" / "compare.csv") as f:
+            return list(csv.DictReader(f))
+
+    first = compare("--agents", "avq,grid")
+    # grid again with another budget: its rows change, those of avq and random stay as they were.
+    second = compare("--agents", "grid", "--scale", "0.02", "--update")
+    assert [(r["agent"], r["seed"]) for r in second] == [(a, s) for a in ("avq", "random", "grid") for s in "01"]
+    assert [r for r in second if r["agent"] != "grid"] == [r for r in first if r["agent"] != "grid"]
+    grid = [r for r in second if r["agent"] == "grid"]
+    assert all(float(r["env_steps"]) > 0 for r in grid) and grid != [r for r in first if r["agent"] == "grid"]
+    curves = json.loads((tmp_path / "data" / "compare_curves.json").read_text())
+    assert [(c["agent"], c["seed"]) for c in curves] == [(r["agent"], int(r["seed"])) for r in second]
+    table = (tmp_path / "data" / "compare_table.md").read_text()
+    assert all(f"| CartPole-v1 | {a} |" in table for a in ("avq", "grid", "random"))

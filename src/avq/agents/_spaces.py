@@ -61,24 +61,30 @@ def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tup
     return low, high
 
 
-def auto_scale(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
-    """``scale="auto"`` before any observation: ``(scale, estimated)``.
+def auto_scale(space: spaces.Space, obs_bounds: Sequence[Any] | None,
+               every: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``scale="auto"`` (or with ``every``, ``scale="spread"``) before any observation: ``(scale, estimated)``.
 
     ``scale`` is ``high - low`` where the bounds (``obs_bounds`` or the space's) are finite, and 1 where
     they are not; ``estimated`` marks the latter, whose scale is then estimated from the observations
-    (:class:`RunningSpread`).
+    (:class:`RunningSpread`). With ``every``, every dimension is estimated but those that ``obs_bounds``
+    bounds: the space's own bounds are then only a start.
 
     Raises:
         ValueError: ``obs_bounds`` is malformed (:func:`normalize_obs_bounds`, and one entry per dimension);
             a space whose finite bounds have ``high <= low``.
     """
     low, high = _given_bounds(space, obs_bounds)
-    estimated = ~(np.isfinite(low) & np.isfinite(high))
-    scale = np.where(estimated, 1.0, high - low)
-    bad = np.flatnonzero(~estimated & ~(scale > 0))
+    finite = np.isfinite(low) & np.isfinite(high)
+    scale = np.where(finite, high - low, 1.0)
+    bad = np.flatnonzero(finite & ~(scale > 0))
     if bad.size:
         d = int(bad[0])
         raise ValueError(f"observation dimension {d} has bounds [{low[d]}, {high[d]}]; high must exceed low")
+    estimated = ~finite
+    if every:
+        given = [entry is not None for entry in (normalize_obs_bounds(obs_bounds) or [None] * len(low))]
+        estimated = ~np.array(given, dtype=bool)
     return scale, estimated
 
 
@@ -125,9 +131,9 @@ def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
         ValueError: a string other than ``"auto"``; what those two raise.
     """
     if isinstance(scale, str):
-        if scale != "auto":
-            raise ValueError(f"scale must be 'auto', None, a number > 0 or one per dimension, not {scale!r}")
-        return auto_scale(space, obs_bounds)
+        if scale not in ("auto", "spread"):
+            raise ValueError(f"scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not {scale!r}")
+        return auto_scale(space, obs_bounds, every=scale == "spread")
     return resolve_scale(space, scale, obs_bounds), np.zeros(space.shape[0], dtype=bool)  # type: ignore[index]
 
 

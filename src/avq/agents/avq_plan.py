@@ -11,7 +11,8 @@ from gymnasium import spaces
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
-from avq.agents._spaces import RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting, scale_state, updated_scale
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting,
+                                scale_state, updated_scale)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -58,8 +59,10 @@ class PlanningAVQ(BaseAgent):
             first ``scale_warmup`` observations (``AUTO_SCALE_STDS`` standard deviations), brought up to date
             at the end of every episode until then; the model then follows its remembered transitions into
             the cells of the new metric. A number or one per dimension: that scale. None: ``high - low`` of
-            the observation bounds, every one of which must be finite.
-        scale_warmup: With ``scale="auto"``: the observations from which the scale is estimated, >= 2.
+            the observation bounds, every one of which must be finite. ``"spread"``: every dimension estimated
+            so (the bounds' range only until the first episode ends), but those that ``obs_bounds`` bounds; for
+            tasks whose bounds are far wider than what a run visits (Acrobot's velocities).
+        scale_warmup: With ``scale="auto"`` or ``"spread"``: the observations from which the scale is estimated, >= 2.
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its

@@ -13,8 +13,8 @@ from numba.core.errors import TypingError
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting, scale_state,
-                                updated_scale)
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting,
+                                scale_state, updated_scale)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -103,8 +103,10 @@ class AVQSarsa(BaseAgent):
             (4) standard deviations of the first ``scale_warmup`` observations, brought up to date at
             the end of every episode until then, and fixed after (1 before the first episode ends,
             and for as long as the dimension has not varied). A number or a sequence: that scale.
-            None: ``high - low`` of the bounds, every one of which must be finite.
-        scale_warmup: With ``scale="auto"``: the number of first observations (resets included)
+            None: ``high - low`` of the bounds, every one of which must be finite. ``"spread"``: every
+            dimension estimated so (the bounds' range only until the first episode ends), but those that
+            ``obs_bounds`` bounds; for tasks whose bounds are far wider than what a run visits.
+        scale_warmup: With ``scale="auto"`` or ``"spread"``: the number of first observations (resets included)
             from which the scale of the dimensions without finite bounds is estimated, >= 2.
         obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the
             scale ``high - low`` is taken, with ``scale="auto"`` or None.

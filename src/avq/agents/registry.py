@@ -65,6 +65,13 @@ _PLAN_GENERAL = dict(gamma=1.0, epsilon=0.0, v_opt="auto", v_min=-10_000.0, know
                      d_min=0.05, collision_growth=True, outcome_split=True, cycle_split=False, split_threshold=10.0,
                      value_slope=None, memory=100_000, scale="auto", max_cells=2048, split_after=5)
 
+# On Acrobot-v1, whose velocity bounds (±4π, ±9π) are far wider than the velocities a run sees, the metric's
+# scale of every dimension is estimated from the first observations (scale "spread"): final return -132 against
+# -350 with the bounds' ranges (tuning seeds 0-2, 300 episodes). On CartPole-v1 and MountainCar-v0 "spread"
+# cost (306 against 500; -159 against -122): there the first observations span too little of what the agent
+# later visits. docs/RESULTS.md, "The general agent: how the planning defaults were chosen".
+_PLAN_ACROBOT = {**_PLAN_GENERAL, "scale": "spread"}
+
 #: name -> {"*": its defaults, environment id: the defaults that replace them (all of them) there}.
 DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's rules exactly: collision trigger only, plain Euclidean metric
@@ -87,6 +94,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # (the general ``avq-sarsa`` reached 0.24, ``tiles`` 0.85).
     "avq": {
         "*": _PLAN_GENERAL,
+        "Acrobot-v1": _PLAN_ACROBOT,
         "avq/GridMaze-v0": {**_AVQ_MAZE, "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
                             "epsilon_min": 0.01},
         "avq/RobotMaze-v0": {**_AVQ_MAZE, "max_cells": 10_000},
@@ -140,6 +148,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # (docs/RESULTS.md, "The general agent on classic control").
     "avq-plan": {
         "*": _PLAN_GENERAL,
+        "Acrobot-v1": _PLAN_ACROBOT,
         "avq/GridMaze-v0": _PLAN_MAZE,
         "avq/RobotMaze-v0": _PLAN_MAZE,
     },
@@ -207,7 +216,9 @@ SUMMARIES: dict[str, str] = {
            "of `avq-plan` with its general defaults: a learned model of the cells, R-max optimism from the rewards seen "
            "(`v_opt` \"auto\"), growth where a decision stays `split_after` steps in its cell and where outcomes "
            "disagree (`outcome_split`), the metric estimated where the bounds are not finite (`scale` \"auto\"), and a "
-           "budget of 2048 cells. On `avq/GridMaze-v0`: Sarsa(λ) with the rules of `avq-maze`, plus a split where two "
+           "budget of 2048 cells; on `Acrobot-v1` the metric's scale estimated from the observations for every "
+           "dimension (`scale` \"spread\"). On `avq/GridMaze-v0`: Sarsa(λ) with the rules of `avq-maze`, plus a split "
+           "where two "
            "greedy decisions cycle between two cells (`cycle_split`) and a decaying exploration rate "
            "(`epsilon_decay`); on `avq/RobotMaze-v0`: `avq-maze` without its budget of cells.",
     "avq-sarsa": "AVQ Sarsa(λ) for any task (the general `avq` before the planning agent): growth on collisions when the "
