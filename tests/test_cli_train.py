@@ -188,3 +188,9 @@ def test_resume_mistakes_exit_2_and_leave_the_run_as_it_was(tmp_path):
     (run / "checkpoint.zip").write_bytes(b"garbage")
     proc = run_cli("train", "--resume", str(run))
     assert proc.returncode == 2 and "checkpoint.zip" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_the_summary_says_1_cell_not_1_cells(tmp_path, capsys):
+    assert main(["train", "--env", "CartPole-v1", "--episodes", "3", "--seed", "0", "--set", "max_cells=1",
+                 "--out", str(tmp_path / "one"), "--no-progress"]) == 0
+    assert ", 1 cell, mean return" in capsys.readouterr().out

@@ -117,3 +117,6 @@ def test_the_command_line_names_a_bad_max_repeat_and_takes_null(tmp_path, capsys
     assert not (tmp_path / "bad").exists()
     assert main([*args, "--out", str(tmp_path / "ok"), "--set", "max_repeat=null"]) == 0
     assert avq.load(tmp_path / "ok" / "model.zip").max_repeat is None
+    # Python's spelling, as the error message writes it, is read as null too.
+    assert main([*args, "--out", str(tmp_path / "py"), "--set", "max_repeat=None"]) == 0
+    assert avq.load(tmp_path / "py" / "model.zip").max_repeat is None

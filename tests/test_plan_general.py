@@ -139,3 +139,12 @@ def test_avq_plan_resumes_exactly_on_a_task_without_bounds(tmp_path, first):
     assert np.array_equal(loaded.scale_, whole.scale_) and loaded.v_opt_ == whole.v_opt_
     assert np.array_equal(loaded.codebook_, whole.codebook_) and np.array_equal(loaded.q_, whole.q_)
     assert loaded.episode_history()["return"].tolist() == whole.episode_history()["return"].tolist()
+
+
+def test_the_class_defaults_are_those_of_avq_on_tasks_without_collisions():
+    direct = avq.PlanningAVQ(gym.make("CartPole-v1"), seed=0)
+    made = avq.make_agent("avq", "CartPole-v1", seed=0)
+    assert direct.get_params() == made.get_params()
+    direct.learn(total_episodes=30)
+    assert direct.n_cells > 10  # (split_after grows cells; with it off the agent keeps its first cell)
+    assert np.array_equal(direct.q_, made.learn(total_episodes=30).q_)

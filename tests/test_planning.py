@@ -187,8 +187,12 @@ def test_bad_planning_options_get_clear_errors():
 
 # -- avq-plan's rules ---------------------------------------------------------------------------------
 
+#: avq-plan's maze settings (the class's own defaults are those of tasks without collisions).
+MAZE = {k: v for k, v in avq.agents.registry.DEFAULTS["avq-plan"]["avq/GridMaze-v0"].items() if k != "scale"}
+
+
 def plan_agent(**kw):
-    agent = avq.PlanningAVQ(gym.make("avq/GridMaze-v0", layout="open5"), scale=1.0, seed=0, **kw)
+    agent = avq.PlanningAVQ(gym.make("avq/GridMaze-v0", layout="open5"), scale=1.0, seed=0, **{**MAZE, **kw})
     agent._setup()
     agent._is_setup = True
     return agent
@@ -344,7 +348,8 @@ def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
              ((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
              ((3, 0), 5.0, True, False, False)]
     env = scripted([((0, 0), steps)], n_actions=1)
-    agent = avq.PlanningAVQ(env, scale=1.0, d_min=0.1, collision_growth=False, outcome_split=False, cycle_split=True,
+    agent = avq.PlanningAVQ(env, **{**MAZE, "scale": 1.0, "d_min": 0.1, "collision_growth": False,
+                                    "outcome_split": False, "cycle_split": True},
                             seed=0)
     agent._setup()
     agent._is_setup = True

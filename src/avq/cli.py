@@ -86,7 +86,8 @@ _CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "tim
 
 
 def _key_values(pairs: list[str], flag: str) -> dict:
-    """``key=value`` pairs, values read as YAML scalars (``0.5``, ``true``, ``[1, 2]``, ``null``)."""
+    """``key=value`` pairs, values read as YAML scalars (``0.5``, ``true``, ``[1, 2]``, ``null``; ``None`` is read
+    as ``null`` too, since the errors say "or None")."""
     import yaml
 
     out = {}
@@ -110,7 +111,7 @@ def _key_values(pairs: list[str], flag: str) -> dict:
                       if inner.startswith("[") and inner.endswith("]") else repr(inner))
             raise UsageError(f"{flag} {key}: cannot read the value {text!r}: in YAML '#' starts a comment; "
                              f"quote the text that holds it: {flag} \"{key}={quoted}\"")
-        out[key] = value
+        out[key] = None if isinstance(value, str) and value in ("None", "none") else value  # (Python's spelling)
     return out
 
 
@@ -148,9 +149,11 @@ def _load_config(path: str) -> dict:
 
 def _print_train_summary(summary: dict) -> None:
     ret = summary["final_return_mean"]
+    unit = summary.get("size_unit", "cells")
+    unit = unit[:-1] if summary["n_cells"] == 1 and unit.endswith("s") else unit  # (1 cell)
     print(
         f"{summary['agent']} on {summary['env']} (seed {summary['seed']}): {summary['episodes']} episodes, "
-        f"{summary['env_steps']} env steps, {summary['n_cells']} {summary.get('size_unit', 'cells')}, "
+        f"{summary['env_steps']} env steps, {summary['n_cells']} {unit}, "
         f"mean return of the last 10% "
         f"{'-' if ret is None else f'{ret:.2f}'}, {summary['wall_s']:.1f} s -> {summary['out']}"
     )

@@ -59,9 +59,10 @@ class PlanningAVQ(BaseAgent):
             first ``scale_warmup`` observations (``AUTO_SCALE_STDS`` standard deviations), brought up to date
             at the end of every episode until then; the model then follows its remembered transitions into
             the cells of the new metric. A number or one per dimension: that scale. None: ``high - low`` of
-            the observation bounds, every one of which must be finite. ``"spread"``: every dimension estimated
-            so (the bounds' range only until the first episode ends), but those that ``obs_bounds`` bounds; for
-            tasks whose bounds are far wider than what a run visits (Acrobot's velocities).
+            the observation bounds, every one of which must be finite. ``"spread"``: every dimension is estimated
+            from the observations, even where the bounds are finite (their range is used only until the first
+            episode ends); a dimension that ``obs_bounds`` bounds keeps that range. For tasks whose bounds are far
+            wider than what a run visits (Acrobot's velocities).
         scale_warmup: With ``scale="auto"`` or ``"spread"``: the observations from which the scale is estimated, >= 2.
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
@@ -76,6 +77,9 @@ class PlanningAVQ(BaseAgent):
             environment from Python, faster. False always steps the environment from Python.
         seed: Seed of every random choice the agent makes and of the environment's first reset.
 
+    The signature's defaults are those of ``avq`` (and ``avq-plan``) on tasks without collisions; on the mazes
+    ``make_agent`` gives the maze settings (``avq.agents.registry.DEFAULTS["avq-plan"]``).
+
     Attributes:
         codebook_: ``(p, n)`` codebook vectors.
         q_: ``(p, m)`` planned values of the cells' decisions (``v_opt`` where not yet known).
@@ -89,12 +93,12 @@ class PlanningAVQ(BaseAgent):
         *,
         gamma: float = 1.0,
         epsilon: float = 0.0,
-        v_opt: float | str = 10.0,
+        v_opt: float | str = "auto",
         v_min: float = -10_000.0,
-        known_after: int = 1,
+        known_after: int = 2,
         n_backups: int = 100,
         tol: float = 0.01,
-        d_min: float = 0.02,
+        d_min: float = 0.05,
         collision_growth: bool = True,
         outcome_split: bool = True,
         cycle_split: bool = False,
@@ -104,8 +108,8 @@ class PlanningAVQ(BaseAgent):
         scale: float | Sequence[float] | str | None = "auto",
         scale_warmup: int = 1000,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
-        max_cells: int = 10_000,
-        split_after: int | None = None,
+        max_cells: int = 2048,
+        split_after: int | None = 5,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:

@@ -104,8 +104,9 @@ class AVQSarsa(BaseAgent):
             the end of every episode until then, and fixed after (1 before the first episode ends,
             and for as long as the dimension has not varied). A number or a sequence: that scale.
             None: ``high - low`` of the bounds, every one of which must be finite. ``"spread"``: every
-            dimension estimated so (the bounds' range only until the first episode ends), but those that
-            ``obs_bounds`` bounds; for tasks whose bounds are far wider than what a run visits.
+            dimension is estimated from the observations, even where the bounds are finite (their range is used
+            only until the first episode ends); a dimension that ``obs_bounds`` bounds keeps that range. For
+            tasks whose bounds are far wider than what a run visits.
         scale_warmup: With ``scale="auto"`` or ``"spread"``: the number of first observations (resets included)
             from which the scale of the dimensions without finite bounds is estimated, >= 2.
         obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the

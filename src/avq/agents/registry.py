@@ -2,9 +2,9 @@
 
 :data:`DEFAULTS` is where every named agent's defaults live: for each name, its
 defaults everywhere (``"*"``) and, for some environments, the defaults that replace
-those (all of them) there, as RL Zoo keeps hyper-parameters per environment. Today
-only ``avq`` has such entries: on ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` it
-takes the collision-driven maze rules. Explicit parameters given to
+those (all of them) there, as RL Zoo keeps hyper-parameters per environment: ``avq``
+takes the collision-driven maze rules on ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0``,
+and ``avq`` and ``avq-plan`` have an entry for ``Acrobot-v1``. Explicit parameters given to
 :func:`make_agent` win over both; the class's own signature defaults fill in what an
 entry leaves out. :func:`make_agent` records on the agent which entry it used
 (``agent.defaults_used``, a :class:`DefaultsUsed`) and ``avq train`` prints it.
@@ -58,7 +58,7 @@ _AVQ_MAZE = dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.05, d_min=1.5, rho=200
 # avq-plan on the mazes (below).
 _PLAN_MAZE = dict(gamma=1.0, epsilon=0.0, v_opt=10.0, v_min=-10_000.0, known_after=1, n_backups=100, tol=0.01,
                   d_min=0.02, collision_growth=True, outcome_split=True, cycle_split=False, split_threshold=10.0,
-                  value_slope=None, memory=100_000, scale=None, max_cells=10_000)
+                  value_slope=None, memory=100_000, scale=None, max_cells=10_000, split_after=None)
 
 # avq-plan on tasks without collisions, and avq there (below).
 _PLAN_GENERAL = dict(gamma=1.0, epsilon=0.0, v_opt="auto", v_min=-10_000.0, known_after=2, n_backups=100, tol=0.01,
