@@ -225,17 +225,8 @@ def previous_rows(out: Path) -> list[dict]:
     rows = []
     with open(out / "data" / "compare.csv", newline="") as f:
         for r in csv.DictReader(f):
-            row: dict = {}
-            for k, v in r.items():
-                if v == "":
-                    row[k] = None
-                elif k in ("task", "agent"):
-                    row[k] = v
-                else:
-                    number = float(v)
-                    row[k] = int(number) if number.is_integer() and k not in ("final_return", "greedy_return",
-                                                                              "greedy_success", "threshold",
-                                                                              "wall_s") else number
+            # (the CSV holds what the writer printed of ints, floats and None: JSON reads each back as it was)
+            row = {k: None if v == "" else v if k in ("task", "agent") else json.loads(v) for k, v in r.items()}
             row["curve"] = curves[(row["task"], row["agent"], row["seed"])]
             rows.append(row)
     return rows

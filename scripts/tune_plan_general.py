@@ -30,22 +30,16 @@ import time
 
 import numpy as np
 
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:0] = [HERE, os.path.join(HERE, os.pardir, "benchmarks")]
+from compare import THRESHOLDS, steps_to_threshold  # noqa: E402  (benchmarks/compare.py: the same measures)
+from tune_general import save as append_row  # noqa: E402
+
 OUT = "docs/data/tune_plan_general.csv"
 TASKS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
-THRESHOLD = {"CartPole-v1": 195.0, "MountainCar-v0": -150.0, "Acrobot-v1": -100.0}
 EPISODES = 300
-WINDOW = 20
 FIELDS = ["phase", "task", "setting", "seed", "episodes", "final_return", "steps_to_threshold", "cells", "cells_30",
           "cells_100", "refused", "env_steps", "wall_s"]
-
-
-def steps_to_threshold(returns: np.ndarray, steps: np.ndarray, threshold: float) -> int | None:
-    """The env steps until the mean return of the last ``WINDOW`` episodes first reached ``threshold``."""
-    done = np.cumsum(steps)
-    for k in range(WINDOW, len(returns) + 1):
-        if returns[k - WINDOW:k].mean() >= threshold:
-            return int(done[k - 1])
-    return None
 
 
 def run(phase: str, task: str, setting: dict, seed: int) -> dict:
@@ -57,7 +51,7 @@ def run(phase: str, task: str, setting: dict, seed: int) -> dict:
     t0 = time.perf_counter()
     agent.learn(total_episodes=EPISODES)
     h = agent.episode_history()
-    reached = steps_to_threshold(h["return"], h["steps"], THRESHOLD[task])
+    reached = steps_to_threshold(h["return"], h["steps"], THRESHOLDS[task])
     return dict(phase=phase, task=task, setting=json.dumps(setting, sort_keys=True), seed=seed, episodes=EPISODES,
                 final_return=round(float(h["return"][-EPISODES // 10:].mean()), 3),
                 steps_to_threshold="" if reached is None else reached, cells=agent.n_cells,
@@ -66,9 +60,6 @@ def run(phase: str, task: str, setting: dict, seed: int) -> dict:
 
 
 def save(row: dict) -> None:
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from tune_general import save as append_row
-
     append_row(row, OUT, FIELDS)
 
 

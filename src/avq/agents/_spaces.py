@@ -124,11 +124,11 @@ class RunningSpread:
 
 
 def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
-    """An agent's ``scale`` parameter as ``(scale, estimated)``: ``"auto"`` as :func:`auto_scale`, anything
-    else as :func:`resolve_scale` (nothing estimated).
+    """An agent's ``scale`` parameter as ``(scale, estimated)``: ``"auto"`` and ``"spread"`` as :func:`auto_scale`,
+    anything else as :func:`resolve_scale` (nothing estimated).
 
     Raises:
-        ValueError: a string other than ``"auto"``; what those two raise.
+        ValueError: a string other than ``"auto"`` and ``"spread"``; what those two raise.
     """
     if isinstance(scale, str):
         if scale not in ("auto", "spread"):
@@ -137,12 +137,17 @@ def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
     return resolve_scale(space, scale, obs_bounds), np.zeros(space.shape[0], dtype=bool)  # type: ignore[index]
 
 
-def updated_scale(scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread") -> np.ndarray | None:
-    """``scale="auto"`` brought up to date: each estimated dimension becomes ``AUTO_SCALE_STDS`` standard
-    deviations of the observations counted (where that is > 0); None when nothing changes."""
+def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread") -> bool:
+    """``scale="auto"`` (or ``"spread"``) brought up to date in place: each estimated dimension becomes
+    ``AUTO_SCALE_STDS`` standard deviations of the observations counted (where that is > 0), and ``inv_scale``
+    its inverse. Returns whether anything changed (the caller's cells may then have moved)."""
     std = AUTO_SCALE_STDS * spread.std()
     new = np.where(estimated & (std > 0), std, scale)
-    return None if np.array_equal(new, scale) else new
+    if np.array_equal(new, scale):
+        return False
+    scale[:] = new
+    inv_scale[:] = 1.0 / new
+    return True
 
 
 def scale_state(scale: np.ndarray, spread: "RunningSpread") -> tuple[dict[str, Any], dict[str, np.ndarray]]:

@@ -12,7 +12,7 @@ from avq._validate import check_bool, check_int, check_optional, check_planning_
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting,
-                                scale_state, updated_scale)
+                                scale_state, refresh_scale)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -266,12 +266,9 @@ class PlanningAVQ(BaseAgent):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        new = updated_scale(self._scale, self._estimated, self._spread) if self._estimated.any() else None
-        if new is not None:
+        if self._estimated.any() and refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread):
             # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
             # follows them (the codebook keeps its vectors in observation units).
-            self._scale[:] = new
-            self._inv_scale[:] = 1.0 / new
             m = self._model.a
             core.relocate(self._V, self._inv_scale, self._S, self._mem_x, self._mem_i, self._mem_f, self._e_xs, m.cnt,
                           m.rsum, m.head, m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r, m.p_head, m.p_sa, m.p_edge,

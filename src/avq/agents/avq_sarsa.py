@@ -14,7 +14,7 @@ from avq._validate import check_bool, check_choice, check_int, check_optional, c
 from avq.agents import _avq_core as core
 from avq.agents import _fused
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting,
-                                scale_state, updated_scale)
+                                scale_state, refresh_scale)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -217,7 +217,6 @@ class AVQSarsa(BaseAgent):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        space = self.env.observation_space
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
         self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds)
 
@@ -237,10 +236,7 @@ class AVQSarsa(BaseAgent):
         standard deviations of the observations counted (where that is > 0). The codebook keeps its vectors
         in observation units, so the metric re-expresses them; only the cached pairs of the merge pass depend
         on it, and a new geometry version recomputes them."""
-        new = updated_scale(self._scale, self._estimated, self._spread)
-        if new is not None:
-            self._scale[:] = new
-            self._inv_scale[:] = 1.0 / new
+        if refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread):
             self._S[core.GEOM] += 1
 
     # -- learned state ------------------------------------------------------------------
