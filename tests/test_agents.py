@@ -341,7 +341,9 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert avq.make_agent("avq", "avq/GridMaze-v0", cycle_split=False, d_min=2.0).get_params()["d_min"] == 2.0
     assert agent_defaults("avq", "avq/GridMaze-v0") == TASK_DEFAULTS["avq"]["avq/GridMaze-v0"]
     assert "merge_age" not in agent_defaults("avq", "avq/GridMaze-v0")
-    assert agent_defaults("avq", "CartPole-v1") == AGENTS["avq"][1]
+    assert agent_defaults("avq", "MountainCar-v0") == AGENTS["avq"][1]
+    # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism.
+    assert agent_defaults("avq", "CartPole-v1") == {**AGENTS["avq"][1], "epsilon": 0.01}
     with pytest.raises(ValueError, match="unknown agent 'nope'"):
         agent_defaults("nope")
 
@@ -366,7 +368,8 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     assert np.array_equal(general.scale_, np.asarray(space.high, np.float64) - np.asarray(space.low, np.float64))
     assert np.array_equal(maze.scale_, [1.0, 1.0]) and maze.get_params()["scale"] == 1.0
     assert AVQSarsa("avq/GridMaze-v0").defaults_used is None  # built directly: the signature's defaults
-    assert defaults_key("avq", "CartPole-v1") == "*" and defaults_key("tabular", "avq/GridMaze-v0") == "*"
+    assert defaults_key("avq", "MountainCar-v0") == "*" and defaults_key("tabular", "avq/GridMaze-v0") == "*"
+    assert defaults_key("avq", "CartPole-v1") == "CartPole-v1"
     # One table: AGENTS and TASK_DEFAULTS hold DEFAULTS' own entries.
     for name, table in DEFAULTS.items():
         assert AGENTS[name][1] is table["*"]

@@ -66,6 +66,9 @@ def test_split_after_is_checked():
 
 def test_the_horizon_is_the_time_limit_else_one_over_one_minus_gamma():
     assert _model.horizon(gym.make("CartPole-v1"), 1.0) == 500.0
+    # Discounted: the most 500 steps of reward 1 are worth, 1 + 0.9 + ... + 0.9 ** 499 (not 500).
+    assert _model.horizon(gym.make("CartPole-v1"), 0.9) == pytest.approx(sum(0.9 ** k for k in range(500)))
+    assert _model.horizon(gym.make("CartPole-v1", max_episode_steps=3), 0.5) == pytest.approx(1.75)
     env = ScriptedEnv([((0.0,), LINE)], n_actions=1, dims=1)  # (no time limit)
     assert _model.horizon(env, 0.9) == pytest.approx(10.0)
     assert _model.horizon(env, 1.0) == _model.UNLIMITED_HORIZON
@@ -142,8 +145,8 @@ def test_avq_plan_resumes_exactly_on_a_task_without_bounds(tmp_path, first):
 
 
 def test_the_class_defaults_are_those_of_avq_on_tasks_without_collisions():
-    direct = avq.PlanningAVQ(gym.make("CartPole-v1"), seed=0)
-    made = avq.make_agent("avq", "CartPole-v1", seed=0)
+    direct = avq.PlanningAVQ(gym.make("MountainCar-v0"), seed=0)
+    made = avq.make_agent("avq", "MountainCar-v0", seed=0)
     assert direct.get_params() == made.get_params()
     direct.learn(total_episodes=30)
     assert direct.n_cells > 10  # (split_after grows cells; with it off the agent keeps its first cell)

@@ -182,13 +182,15 @@ UNLIMITED_HORIZON = 1000
 
 
 def horizon(env: Any, gamma: float) -> float:
-    """The number of steps by which ``v_opt="auto"`` multiplies the largest reward: the environment's time
-    limit (``env.spec.max_episode_steps``), else ``1 / (1 - gamma)``, else :data:`UNLIMITED_HORIZON`."""
+    """What ``v_opt="auto"`` multiplies the largest reward by: the discounted number of steps an episode may
+    last, ``1 + gamma + ... + gamma ** (L - 1)`` for the environment's time limit ``L``
+    (``env.spec.max_episode_steps``; ``L`` itself with ``gamma = 1``); without a limit ``1 / (1 - gamma)``, or
+    :data:`UNLIMITED_HORIZON` with ``gamma = 1``."""
     spec = getattr(env, "spec", None)
     limit = getattr(spec, "max_episode_steps", None)
-    if limit:
-        return float(limit)
-    return 1.0 / (1.0 - gamma) if gamma < 1.0 else float(UNLIMITED_HORIZON)
+    if gamma == 1.0:
+        return float(limit) if limit else float(UNLIMITED_HORIZON)
+    return (1.0 - gamma ** limit) / (1.0 - gamma) if limit else 1.0 / (1.0 - gamma)
 
 
 #: Which capacity each array's first dimension follows: states, edges, or its own length.

@@ -72,6 +72,14 @@ _PLAN_GENERAL = dict(gamma=1.0, epsilon=0.0, v_opt="auto", v_min=-10_000.0, know
 # later visits. docs/RESULTS.md, "The general agent: how the planning defaults were chosen".
 _PLAN_ACROBOT = {**_PLAN_GENERAL, "scale": "spread"}
 
+# On CartPole-v1, ε-greedy exploration (epsilon 0.01) on top of the optimism. Without it, about one seed in ten
+# settles on a policy that balances the pole while the cart drifts off the track in ~150 steps: the planner's
+# greedy policy never visits the states that would teach it to drift back. With it, seeds 0-9 (500 episodes):
+# final return 494 ± 8 (lowest 474) against 469 ± 83 (lowest 221), greedy success 100% on every seed against
+# 85% on average. On MountainCar and Acrobot ε costs (-131 against -127; -161 against -132). docs/RESULTS.md,
+# "The general agent: how the planning defaults were chosen".
+_PLAN_CARTPOLE = {**_PLAN_GENERAL, "epsilon": 0.01}
+
 #: name -> {"*": its defaults, environment id: the defaults that replace them (all of them) there}.
 DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's rules exactly: collision trigger only, plain Euclidean metric
@@ -95,6 +103,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     "avq": {
         "*": _PLAN_GENERAL,
         "Acrobot-v1": _PLAN_ACROBOT,
+        "CartPole-v1": _PLAN_CARTPOLE,
         "avq/GridMaze-v0": {**_AVQ_MAZE, "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995,
                             "epsilon_min": 0.01},
         "avq/RobotMaze-v0": {**_AVQ_MAZE, "max_cells": 10_000},
@@ -149,6 +158,7 @@ DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     "avq-plan": {
         "*": _PLAN_GENERAL,
         "Acrobot-v1": _PLAN_ACROBOT,
+        "CartPole-v1": _PLAN_CARTPOLE,
         "avq/GridMaze-v0": _PLAN_MAZE,
         "avq/RobotMaze-v0": _PLAN_MAZE,
     },
