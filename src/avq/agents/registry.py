@@ -227,7 +227,8 @@ SUMMARIES: dict[str, str] = {
            "(`v_opt` \"auto\"), growth where a decision stays `split_after` steps in its cell and where outcomes "
            "disagree (`outcome_split`), the metric estimated where the bounds are not finite (`scale` \"auto\"), and a "
            "budget of 2048 cells; on `Acrobot-v1` the metric's scale estimated from the observations for every "
-           "dimension (`scale` \"spread\"). On `avq/GridMaze-v0`: Sarsa(λ) with the rules of `avq-maze`, plus a split "
+           "dimension (`scale` \"spread\"), on `CartPole-v1` ε-greedy exploration (ε 0.01) on top of the optimism. "
+           "On `avq/GridMaze-v0`: Sarsa(λ) with the rules of `avq-maze`, plus a split "
            "where two "
            "greedy decisions cycle between two cells (`cycle_split`) and a decaying exploration rate "
            "(`epsilon_decay`); on `avq/RobotMaze-v0`: `avq-maze` without its budget of cells.",
