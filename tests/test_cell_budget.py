@@ -17,9 +17,10 @@ NO = False
 
 
 def test_the_general_avq_has_a_budget_within_half_of_tiles_features():
-    agent = avq.make_agent("avq", gym.make("CartPole-v1"))
     tiles = avq.make_agent("tiles", gym.make("MountainCar-v0"))
-    assert agent.defaults_used.key == "*" and 2 * agent.max_cells <= tiles.iht_size
+    for task in ("MountainCar-v0", "CartPole-v1", "Acrobot-v1"):  # (the general entry and the tasks' own)
+        agent = avq.make_agent("avq", gym.make(task))
+        assert 2 * agent.max_cells <= tiles.iht_size, task
 
 
 def test_on_a_task_that_asks_for_more_the_default_budget_holds_and_counts_what_it_refuses():
