@@ -119,7 +119,8 @@ def summarize(task: str, agent: str, seed: int, episodes: int, returns, steps, c
     return row
 
 
-def run_one(task: str, agent: str, seed: int, episodes: int) -> dict:
+def run_one(task: str, agent: str, seed: int, episodes: int, params: dict | None = None) -> dict:
+    """One run: ``agent`` on ``task`` with the task's settings for it, and ``params`` (``--set``) on top."""
     import avq
     from avq.evaluation import evaluate_policy
     from avq.runs import make_env
@@ -137,7 +138,7 @@ def run_one(task: str, agent: str, seed: int, episodes: int) -> dict:
         wall = time.perf_counter() - t0
         ev = evaluate_policy(policy, eval_env, n_episodes=EVAL_EPISODES, seed=10_000 + seed)
         return summarize(task, agent, seed, episodes, run["returns"], run["steps"], None, wall, ev)
-    model = avq.make_agent(agent, env, seed=seed, **overrides.get(agent, {}))
+    model = avq.make_agent(agent, env, seed=seed, **{**overrides.get(agent, {}), **(params or {})})
     model.learn(total_episodes=episodes)
     wall = time.perf_counter() - t0
     hist = model.episode_history()
@@ -244,19 +245,31 @@ def main() -> None:
     ap.add_argument("--update", action="store_true",
                     help="keep the rows of OUT/data/compare.csv for the tasks and agents not run now, and write the "
                          "tables and figures of them all (the same seeds)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="for trials: a parameter given to every agent run on top of the task's settings, read as "
+                         "`avq train --set` reads it, e.g. --set 'scale_factor=[3,3,3,3,1,1]' (repeatable; not with "
+                         "--out docs)")
     args = ap.parse_args()
+    from avq.cli import UsageError, key_values
+
+    try:
+        params = key_values(args.set, "--set")  # (read as `avq train --set` reads them)
+    except UsageError as e:
+        ap.error(str(e))
     out = Path(args.out)
+    if params and out.resolve() == (Path(__file__).resolve().parents[1] / "docs"):
+        ap.error(f"--set gives trial settings; write them elsewhere than the results in {out} (e.g. --out /tmp/trial)")
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "data").mkdir(parents=True, exist_ok=True)
     tasks = [t for t in args.tasks.split(",") if t]
     agents = [a for a in args.agents.split(",") if a]
     agents += [RANDOM] if RANDOM not in agents and not args.update else []  # (--update: random's rows are kept)
-    jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale))) for t in tasks for a in agents
+    jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale)), params) for t in tasks for a in agents
             if a not in SAME_AS.get(t, {}) for s in range(args.first_seed, args.first_seed + args.seeds)]
     t0 = time.perf_counter()
     rows = Parallel(n_jobs=args.jobs, verbose=5)(delayed(run_one)(*j) for j in jobs)
     if args.update:
-        kept = [r for r in previous_rows(out) if (r["task"], r["agent"]) not in {(t, a) for t, a, _, _ in jobs}]
+        kept = [r for r in previous_rows(out) if (r["task"], r["agent"]) not in {(t, a) for t, a, *_ in jobs}]
         rows = kept + rows
         tasks = list(dict.fromkeys([t for t in TASKS if any(r["task"] == t for r in rows)]))
         agents = list(dict.fromkeys([a for a in (*AGENTS, RANDOM) if any(r["agent"] == a for r in rows)]))

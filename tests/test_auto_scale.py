@@ -157,3 +157,31 @@ def test_spread_estimates_every_dimension_but_those_obs_bounds_bounds(scripted):
     assert given.scale_[0] == 6.0 and given.scale_[1] == pytest.approx(4 * np.std([0.0, 2.0, -1.0]), rel=1e-12)
     with pytest.raises(ValueError, match="scale must be 'auto', 'spread', None"):
         AVQSarsa(env, scale="wide")
+
+
+@pytest.mark.parametrize("cls", [AVQSarsa, avq.PlanningAVQ])
+def test_scale_factor_multiplies_the_scale_whatever_its_source(scripted, cls, tmp_path):
+    # Dimension 0: the bounds' range 2 (scale "auto") times 3; dimension 1: 4 std of the first observations
+    # times 0.5, from the start (1 * 0.5) and after the estimate; a resumed agent keeps both.
+    env = half_bounded(scripted, [((0.0, 0.0), [step(0.5, 2.0), step(0.0, -1.0, end=True)])])
+    kw = dict(scale_warmup=3, scale_factor=[3.0, 0.5], seed=0)
+    agent = cls(env, **kw)
+    assert agent.scale_.tolist() == [6.0, 0.5]
+    agent.learn(total_episodes=1)
+    assert agent.scale_ == pytest.approx([6.0, 0.5 * 4 * np.std([0.0, 2.0, -1.0])], rel=1e-12)
+    plain = cls(env, scale_warmup=3, seed=0).learn(total_episodes=1)
+    assert agent.scale_ / plain.scale_ == pytest.approx([3.0, 0.5], rel=1e-12)
+    # A number applies to every dimension, and to a scale given outright.
+    assert cls(env, scale=[1.0, 4.0], scale_factor=2, seed=0).scale_.tolist() == [2.0, 8.0]
+    assert agent.get_params()["scale_factor"] == [3.0, 0.5]
+    loaded = avq.load(agent.save(tmp_path / "m.zip"), env=env)
+    assert loaded.get_params()["scale_factor"] == [3.0, 0.5] and np.array_equal(loaded.scale_, agent.scale_)
+
+
+@pytest.mark.parametrize("bad, what", [([1.0, 2.0, 3.0], "a number or 2 numbers"), ([1.0, 0.0], "dimension 1 has 0.0"),
+                                       (np.inf, "dimension 0 has inf"), ("wide", "a number or 2 numbers")])
+def test_a_bad_scale_factor_gets_a_clear_error(scripted, bad, what):
+    env = half_bounded(scripted, [((0.0, 0.0), [step(0.5, 2.0, end=True)])])
+    for cls in (AVQSarsa, avq.PlanningAVQ):
+        with pytest.raises(ValueError, match=f"scale_factor must be .*{what}"):
+            cls(env, scale_factor=bad)

@@ -13,7 +13,7 @@ from typing import Sequence
 
 from avq._io import WriteError
 
-__all__ = ["main"]
+__all__ = ["UsageError", "key_values", "main"]
 
 
 class UsageError(Exception):
@@ -85,7 +85,7 @@ _CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "tim
                 "avq_version"}
 
 
-def _key_values(pairs: list[str], flag: str) -> dict:
+def key_values(pairs: list[str], flag: str) -> dict:
     """``key=value`` pairs, values read as YAML scalars (``0.5``, ``true``, ``[1, 2]``, ``null``; ``None`` is read
     as ``null`` too, since the errors say "or None")."""
     import yaml
@@ -190,8 +190,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if not env_id:
         raise UsageError("--env is required (or 'env' in --config)")
     agent = args.agent or config.get("agent") or "avq"
-    params = {**(config.get("params") or {}), **_key_values(args.set, "--set")}
-    env_kwargs = {**(config.get("env_kwargs") or {}), **_key_values(args.env_kwargs, "--env-kwargs")}
+    params = {**(config.get("params") or {}), **key_values(args.set, "--set")}
+    env_kwargs = {**(config.get("env_kwargs") or {}), **key_values(args.env_kwargs, "--env-kwargs")}
     episodes, timesteps = args.episodes, args.timesteps
     if episodes is None and timesteps is None:
         episodes, timesteps = config.get("episodes"), config.get("timesteps")

@@ -8,7 +8,7 @@ from typing import Any, Sequence
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["resolve_bounds", "resolve_scale", "auto_scale", "RunningSpread", "AUTO_SCALE_STDS",
+__all__ = ["resolve_bounds", "resolve_scale", "auto_scale", "RunningSpread", "AUTO_SCALE_STDS", "per_dimension",
            "normalize_obs_bounds", "check_box_discrete"]
 
 #: ``scale="auto"`` takes this many standard deviations of the observations seen as the range of a
@@ -123,9 +123,11 @@ class RunningSpread:
         return np.sqrt(self.m2 / max(self.count, 1))
 
 
-def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> tuple[np.ndarray, np.ndarray]:
+def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None,
+                  factor: np.ndarray | float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """An agent's ``scale`` parameter as ``(scale, estimated)``: ``"auto"`` and ``"spread"`` as :func:`auto_scale`,
-    anything else as :func:`resolve_scale` (nothing estimated).
+    anything else as :func:`resolve_scale` (nothing estimated); then times ``factor`` (the agent's
+    ``scale_factor``, from :func:`per_dimension`), which the estimates of :func:`refresh_scale` keep.
 
     Raises:
         ValueError: a string other than ``"auto"`` and ``"spread"``; what those two raise.
@@ -133,15 +135,18 @@ def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
     if isinstance(scale, str):
         if scale not in ("auto", "spread"):
             raise ValueError(f"scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not {scale!r}")
-        return auto_scale(space, obs_bounds, every=scale == "spread")
-    return resolve_scale(space, scale, obs_bounds), np.zeros(space.shape[0], dtype=bool)  # type: ignore[index]
+        s, estimated = auto_scale(space, obs_bounds, every=scale == "spread")
+    else:
+        s, estimated = resolve_scale(space, scale, obs_bounds), np.zeros(space.shape[0], dtype=bool)  # type: ignore[index]
+    return s * factor, estimated
 
 
-def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread") -> bool:
+def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread",
+                  factor: np.ndarray | float = 1.0) -> bool:
     """``scale="auto"`` (or ``"spread"``) brought up to date in place: each estimated dimension becomes
-    ``AUTO_SCALE_STDS`` standard deviations of the observations counted (where that is > 0), and ``inv_scale``
-    its inverse. Returns whether anything changed (the caller's cells may then have moved)."""
-    std = AUTO_SCALE_STDS * spread.std()
+    ``AUTO_SCALE_STDS`` standard deviations of the observations counted (where that is > 0) times ``factor``,
+    and ``inv_scale`` its inverse. Returns whether anything changed (the caller's cells may then have moved)."""
+    std = AUTO_SCALE_STDS * spread.std() * factor
     new = np.where(estimated & (std > 0), std, scale)
     if np.array_equal(new, scale):
         return False
@@ -195,13 +200,23 @@ def resolve_scale(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
     if scale is None:
         low, high = resolve_bounds(space, obs_bounds)
         return high - low
+    return per_dimension("scale", scale, n)
+
+
+def per_dimension(name: str, value: Any, n: int) -> np.ndarray:
+    """``value``, a number or one per dimension, as ``(n,)`` floats, each finite and > 0.
+
+    Raises:
+        ValueError: naming ``name``: neither a number nor ``n`` numbers, or one that is not finite and > 0.
+    """
     try:
-        s = np.broadcast_to(np.asarray(scale, dtype=np.float64), (n,)).copy()
+        s = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy()
     except (ValueError, TypeError):
-        raise ValueError(f"scale must be a number or {n} numbers, not {scale!r}") from None
+        raise ValueError(f"{name} must be a number or {n} numbers (one per observation dimension), "
+                         f"not {value!r}") from None
     bad = np.flatnonzero(~(np.isfinite(s) & (s > 0)))
     if bad.size:
-        raise ValueError(f"scale must be finite and > 0; dimension {int(bad[0])} has {s[bad[0]]}")
+        raise ValueError(f"{name} must be finite and > 0; dimension {int(bad[0])} has {s[bad[0]]}")
     return s
 
 

@@ -11,8 +11,8 @@ from gymnasium import spaces
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting,
-                                scale_state, refresh_scale)
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, per_dimension,
+                                refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -64,6 +64,10 @@ class PlanningAVQ(BaseAgent):
             episode ends); a dimension that ``obs_bounds`` bounds keeps that range. For tasks whose bounds are far
             wider than what a run visits (Acrobot's velocities).
         scale_warmup: With ``scale="auto"`` or ``"spread"``: the observations from which the scale is estimated, >= 2.
+        scale_factor: A number or one per dimension (each > 0) by which the metric's scale is multiplied,
+            whatever its source (``scale``, the bounds, or the estimate of ``"auto"`` and ``"spread"``): a
+            dimension of factor 2 counts half as much in the distance, so its cells are twice as wide. For a
+            task whose decisions depend more on some dimensions than on others (Acrobot's velocities).
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its
@@ -107,6 +111,7 @@ class PlanningAVQ(BaseAgent):
         memory: int = 100_000,
         scale: float | Sequence[float] | str | None = "auto",
         scale_warmup: int = 1000,
+        scale_factor: float | Sequence[float] = 1.0,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 2048,
         split_after: int | None = 5,
@@ -129,8 +134,11 @@ class PlanningAVQ(BaseAgent):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
+        factor = per_dimension("scale_factor", scale_factor, self.env.observation_space.shape[0])
+        self.scale_factor = float(factor[0]) if np.ndim(scale_factor) == 0 else factor.tolist()
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds)
+        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds, factor)
+        self._factor = factor
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = _model.horizon(self.env, self.gamma)
 
@@ -266,7 +274,7 @@ class PlanningAVQ(BaseAgent):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._estimated.any() and refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread):
+        if self._estimated.any() and refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread, self._factor):
             # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
             # follows them (the codebook keeps its vectors in observation units).
             m = self._model.a

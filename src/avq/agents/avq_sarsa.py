@@ -13,8 +13,8 @@ from numba.core.errors import TypingError
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, scale_setting,
-                                scale_state, refresh_scale)
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, per_dimension,
+                                refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -109,6 +109,10 @@ class AVQSarsa(BaseAgent):
             tasks whose bounds are far wider than what a run visits.
         scale_warmup: With ``scale="auto"`` or ``"spread"``: the number of first observations (resets included)
             from which the scale of the dimensions without finite bounds is estimated, >= 2.
+        scale_factor: A number or one per dimension (each > 0) by which the metric's scale is multiplied,
+            whatever its source (``scale``, the bounds, or the estimate of ``"auto"`` and ``"spread"``): a
+            dimension of factor 2 counts half as much in the distance, so its cells are twice as wide. For a
+            task whose decisions depend more on some dimensions than on others (Acrobot's velocities).
         obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the
             scale ``high - low`` is taken, with ``scale="auto"`` or None.
         max_repeat: Beyond the paper: a decision ends after at most this many primitive steps,
@@ -178,6 +182,7 @@ class AVQSarsa(BaseAgent):
         reward_trigger: float | None = None,
         scale: float | Sequence[float] | str | None = "auto",
         scale_warmup: int = 1000,
+        scale_factor: float | Sequence[float] = 1.0,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 10_000,
         max_repeat: int | None = None,
@@ -217,8 +222,11 @@ class AVQSarsa(BaseAgent):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
+        factor = per_dimension("scale_factor", scale_factor, self.env.observation_space.shape[0])
+        self.scale_factor = float(factor[0]) if np.ndim(scale_factor) == 0 else factor.tolist()
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds)
+        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds, factor)
+        self._factor = factor
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
@@ -236,7 +244,7 @@ class AVQSarsa(BaseAgent):
         standard deviations of the observations counted (where that is > 0). The codebook keeps its vectors
         in observation units, so the metric re-expresses them; only the cached pairs of the merge pass depend
         on it, and a new geometry version recomputes them."""
-        if refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread):
+        if refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread, self._factor):
             self._S[core.GEOM] += 1
 
     # -- learned state ------------------------------------------------------------------
