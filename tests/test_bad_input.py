@@ -72,6 +72,16 @@ def test_a_cell_budget_below_one_is_refused(tmp_path, capsys, value):
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.parametrize(("value", "told"), [
+    ("scale_factor=[3,3]", "scale_factor must be a number or 4 numbers (one per observation dimension), not [3, 3]"),
+    ("scale_factor=[1,0,1,1]", "scale_factor must be finite and > 0; dimension 1 has 0.0"),
+])
+def test_a_bad_scale_factor_is_refused_from_the_command_line(tmp_path, capsys, value, told):
+    code, lines = train(tmp_path, capsys, "--agent", "avq", "--set", value)
+    assert code == 2 and lines == [f"avq: error: {told}"]
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.fixture
 def nan_env():
     """Registers NAN_ENV, whose fifth episode has a NaN at its third step."""
