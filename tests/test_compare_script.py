@@ -76,3 +76,25 @@ def test_update_reruns_some_agents_and_keeps_the_rows_of_the_others(tmp_path):
     assert [(c["agent"], c["seed"]) for c in curves] == [(r["agent"], int(r["seed"])) for r in second]
     table = (tmp_path / "data" / "compare_table.md").read_text()
     assert all(f"| CartPole-v1 | {a} |" in table for a in ("avq", "grid", "random"))
+
+
+def test_set_gives_every_agent_run_a_parameter_on_top_of_the_tasks_settings():
+    # A budget of 3 cells on top of Acrobot's settings: the run keeps 3 cells, where it grows more without; the
+    # task's settings are left as they were.
+    settings = json.dumps(compare.TASKS["Acrobot-v1"])
+    capped = compare.run_one("Acrobot-v1", "avq", 0, 2, {"max_cells": 3})
+    assert capped["cells"] == 3 and compare.run_one("Acrobot-v1", "avq", 0, 2)["cells"] > 3
+    assert json.dumps(compare.TASKS["Acrobot-v1"]) == settings
+
+
+def test_set_is_read_as_avq_train_reads_it_and_never_writes_over_the_results(tmp_path):
+    def run(*args):
+        return subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",
+                               "--agents", "avq", "--seeds", "1", "--scale", "0.01", "--jobs", "1", *args],
+                              capture_output=True, text=True, timeout=600)
+
+    bad = run("--set", "d_min", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "--set expects key=value, not 'd_min'" in bad.stderr
+    docs = run("--set", "d_min=0.1")  # (--out docs, the default)
+    assert docs.returncode == 2 and "--set gives trial settings; write them elsewhere" in docs.stderr
+    assert not (tmp_path / "data").exists()
