@@ -344,10 +344,13 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert agent_defaults("avq", "MountainCar-v0") == AGENTS["avq"][1]
     # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism.
     assert agent_defaults("avq", "CartPole-v1") == {**AGENTS["avq"][1], "epsilon": 0.01}
-    # Acrobot-v1's: every dimension's scale estimated, and the four components of the angles a third as weighty.
+    # Acrobot-v1's: every dimension's scale estimated, the four components of the angles a third as weighty, and
+    # untried decisions worth the return at which Gymnasium calls the task solved.
     acrobot = avq.make_agent("avq", "Acrobot-v1")
     assert agent_defaults("avq", "Acrobot-v1") == {**AGENTS["avq"][1], "scale": "spread",
-                                                   "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0]}
+                                                   "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0],
+                                                   "v_opt": gym.spec("Acrobot-v1").reward_threshold}
+    assert acrobot.v_opt_ == -100.0
     high = acrobot.env.observation_space.high.astype(np.float64)
     assert acrobot.scale_.tolist() == (2 * high * [3, 3, 3, 3, 1, 1]).tolist()  # (the bounds' range until estimated)
     with pytest.raises(ValueError, match="unknown agent 'nope'"):
