@@ -70,9 +70,8 @@ _PLAN_GENERAL = dict(gamma=1.0, epsilon=0.0, v_opt="auto", v_min=-10_000.0, know
 # -350 with the bounds' ranges (tuning seeds 0-2, 300 episodes). On CartPole-v1 and MountainCar-v0 "spread"
 # cost (306 against 500; -159 against -122): there the first observations span too little of what the agent
 # later visits. And the angles' four components (cos and sin of each joint) count a third as much as the two
-# velocities (scale_factor 3 on them): swinging up is decided by the velocities (pump energy in the direction
-# of the swing), and cells as fine in the angles as in the velocities spend the budget where decisions agree.
-# Seeds 0-9, 500 episodes: -120.9 ± 5.1 against -136 ± 13 without (factors 2 and 3, velocities at 1 or 0.7,
+# velocities (scale_factor 3 on them; a guess at why: swinging up is mostly a matter of timing the torque to the
+# velocities, so cells as fine in the angles spend the budget where decisions agree). Seeds 0-9, 500 episodes: -120.9 ± 5.1 against -136 ± 13 without (factors 2 and 3, velocities at 1 or 0.7,
 # all gave -119.6 to -125.2; tiles -128 ± 11). Untried decisions are worth -100 (v_opt), the return at which
 # Gymnasium calls the task solved (its spec's reward_threshold), not 0 ("auto": the best any reward allows):
 # with 0 the agent explores every new cell until the budget is full and improves only then (a 20-episode
