@@ -342,8 +342,10 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert agent_defaults("avq", "avq/GridMaze-v0") == TASK_DEFAULTS["avq"]["avq/GridMaze-v0"]
     assert "merge_age" not in agent_defaults("avq", "avq/GridMaze-v0")
     assert agent_defaults("avq", "MountainCar-v0") == AGENTS["avq"][1]
-    # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism.
-    assert agent_defaults("avq", "CartPole-v1") == {**AGENTS["avq"][1], "epsilon": 0.01}
+    # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism, and the pole's
+    # dimensions twice as weighty as the cart's.
+    assert agent_defaults("avq", "CartPole-v1") == {**AGENTS["avq"][1], "epsilon": 0.01,
+                                                    "scale_factor": [1.0, 1.0, 0.5, 0.5]}
     # Acrobot-v1's: every dimension's scale estimated, the four components of the angles a third as weighty, and
     # untried decisions worth the return at which Gymnasium calls the task solved.
     acrobot = avq.make_agent("avq", "Acrobot-v1")

@@ -99,11 +99,14 @@ def test_avq_learns_cartpole_without_obs_bounds():
     agent = make_agent("avq", env, seed=0).learn(total_episodes=20)
     assert agent.get_params()["obs_bounds"] is None and agent.get_params()["scale"] == "auto"
     space = env.observation_space
+    factor = np.array(agent.get_params()["scale_factor"])  # (CartPole-v1's entry: the pole's dimensions at 0.5)
+    assert factor.tolist() == [1.0, 1.0, 0.5, 0.5]
     bounded = [0, 2]  # the position and the angle have finite bounds; the velocities do not
-    assert np.array_equal(agent.scale_[bounded], (space.high.astype(float) - space.low.astype(float))[bounded])
+    assert np.array_equal(agent.scale_[bounded],
+                          ((space.high.astype(float) - space.low.astype(float)) * factor)[bounded])
     seen = np.array(env.seen)
     assert len(seen) < 1000  # all within the warm-up (scale_warmup 1000)
-    assert agent.scale_[[1, 3]] == pytest.approx(4 * seen[:, [1, 3]].std(axis=0), rel=1e-12)
+    assert agent.scale_[[1, 3]] == pytest.approx(4 * seen[:, [1, 3]].std(axis=0) * factor[[1, 3]], rel=1e-12)
     assert agent.n_cells >= 1 and len(agent.history_) == 20
 
 
