@@ -137,7 +137,8 @@ def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
             raise ValueError(f"scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not {scale!r}")
         s, estimated = auto_scale(space, obs_bounds, every=scale == "spread")
     else:
-        s, estimated = resolve_scale(space, scale, obs_bounds), np.zeros(space.shape[0], dtype=bool)  # type: ignore[index]
+        n = space.shape[0]  # type: ignore[index]
+        s, estimated = resolve_scale(space, scale, obs_bounds), np.zeros(n, dtype=bool)
     return s * factor, estimated
 
 

@@ -11,8 +11,8 @@ from gymnasium import spaces
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, per_dimension,
-                                refresh_scale, scale_setting, scale_state)
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
+                                per_dimension, refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -274,7 +274,8 @@ class PlanningAVQ(BaseAgent):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._estimated.any() and refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread, self._factor):
+        if self._estimated.any() and refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread,
+                                                   self._factor):
             # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
             # follows them (the codebook keeps its vectors in observation units).
             m = self._model.a

@@ -13,8 +13,8 @@ from numba.core.errors import TypingError
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _avq_core as core
 from avq.agents import _fused
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds, per_dimension,
-                                refresh_scale, scale_setting, scale_state)
+from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
+                                per_dimension, refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
