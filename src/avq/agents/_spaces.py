@@ -124,22 +124,25 @@ class RunningSpread:
 
 
 def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None,
-                  factor: np.ndarray | float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """An agent's ``scale`` parameter as ``(scale, estimated)``: ``"auto"`` and ``"spread"`` as :func:`auto_scale`,
-    anything else as :func:`resolve_scale` (nothing estimated); then times ``factor`` (the agent's
-    ``scale_factor``, from :func:`per_dimension`), which the estimates of :func:`refresh_scale` keep.
+                  scale_factor: Any = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An agent's ``scale`` and ``scale_factor`` parameters as ``(scale, estimated, factor)``: ``"auto"`` and
+    ``"spread"`` as :func:`auto_scale`, anything else as :func:`resolve_scale` (nothing estimated); then times
+    ``factor``, ``scale_factor`` per dimension (:func:`per_dimension`), which the estimates of
+    :func:`refresh_scale` keep when given it.
 
     Raises:
-        ValueError: a string other than ``"auto"`` and ``"spread"``; what those two raise.
+        ValueError: a string other than ``"auto"`` and ``"spread"``; what those two and :func:`per_dimension`
+            raise.
     """
+    n = space.shape[0]  # type: ignore[index]
+    factor = per_dimension("scale_factor", scale_factor, n)
     if isinstance(scale, str):
         if scale not in ("auto", "spread"):
             raise ValueError(f"scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not {scale!r}")
         s, estimated = auto_scale(space, obs_bounds, every=scale == "spread")
     else:
-        n = space.shape[0]  # type: ignore[index]
         s, estimated = resolve_scale(space, scale, obs_bounds), np.zeros(n, dtype=bool)
-    return s * factor, estimated
+    return s * factor, estimated, factor
 
 
 def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread",

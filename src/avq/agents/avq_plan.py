@@ -12,7 +12,7 @@ from avq._validate import check_bool, check_int, check_optional, check_planning_
 from avq.agents import _fused, _model
 from avq.agents import _plan_core as core
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
-                                per_dimension, refresh_scale, scale_setting, scale_state)
+                                refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -134,11 +134,10 @@ class PlanningAVQ(BaseAgent):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        factor = per_dimension("scale_factor", scale_factor, self.env.observation_space.shape[0])
-        self.scale_factor = float(factor[0]) if np.ndim(scale_factor) == 0 else factor.tolist()
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds, factor)
-        self._factor = factor
+        self._scale, self._estimated, self._factor = scale_setting(self.env.observation_space, scale,
+                                                                   self.obs_bounds, scale_factor)
+        self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = _model.horizon(self.env, self.gamma)
 

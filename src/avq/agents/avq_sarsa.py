@@ -14,7 +14,7 @@ from avq._validate import check_bool, check_choice, check_int, check_optional, c
 from avq.agents import _avq_core as core
 from avq.agents import _fused
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
-                                per_dimension, refresh_scale, scale_setting, scale_state)
+                                refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -222,11 +222,10 @@ class AVQSarsa(BaseAgent):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        factor = per_dimension("scale_factor", scale_factor, self.env.observation_space.shape[0])
-        self.scale_factor = float(factor[0]) if np.ndim(scale_factor) == 0 else factor.tolist()
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated = scale_setting(self.env.observation_space, scale, self.obs_bounds, factor)
-        self._factor = factor
+        self._scale, self._estimated, self._factor = scale_setting(self.env.observation_space, scale,
+                                                                   self.obs_bounds, scale_factor)
+        self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:

@@ -4,9 +4,9 @@
 defaults everywhere (``"*"``) and, for some environments, the defaults that replace
 those (all of them) there, as RL Zoo keeps hyper-parameters per environment: ``avq``
 takes the collision-driven maze rules on ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0``,
-and ``avq`` and ``avq-plan`` have entries for ``Acrobot-v1`` and ``CartPole-v1`` (their metric weighted per dimension, and more). Explicit parameters given to
-:func:`make_agent` win over both; the class's own signature defaults fill in what an
-entry leaves out. :func:`make_agent` records on the agent which entry it used
+and ``avq`` and ``avq-plan`` have entries for ``Acrobot-v1`` and ``CartPole-v1`` (their metric weighted per
+dimension, and more). Explicit parameters given to :func:`make_agent` win over both; the class's own
+signature defaults fill in what an entry leaves out. :func:`make_agent` records on the agent which entry it used
 (``agent.defaults_used``, a :class:`DefaultsUsed`) and ``avq train`` prints it.
 
 :data:`AGENTS` (name -> class and ``"*"`` defaults) and :data:`TASK_DEFAULTS`
@@ -71,15 +71,17 @@ _PLAN_GENERAL = dict(gamma=1.0, epsilon=0.0, v_opt="auto", v_min=-10_000.0, know
 # cost (306 against 500; -159 against -122): there the first observations span too little of what the agent
 # later visits. And the angles' four components (cos and sin of each joint) count a third as much as the two
 # velocities (scale_factor 3 on them; a guess at why: swinging up is mostly a matter of timing the torque to the
-# velocities, so cells as fine in the angles spend the budget where decisions agree). Seeds 0-9, 500 episodes: -120.9 ± 5.1 against -136 ± 13 without (factors 2 and 3, velocities at 1 or 0.7,
-# all gave -119.6 to -125.2; tiles -128 ± 11). Untried decisions are worth -100 (v_opt), the return at which
+# velocities, so cells as fine in the angles spend the budget where decisions agree). Seeds 0-9, 500 episodes:
+# -120.9 ± 5.1 against -136 ± 13 without (factors 2 and 3, velocities at 1 or 0.7, all gave -119.6 to -125.2;
+# tiles -128 ± 11). Untried decisions are worth -100 (v_opt), the return at which
 # Gymnasium calls the task solved (its spec's reward_threshold), not 0 ("auto": the best any reward allows):
 # with 0 the agent explores every new cell until the budget is full and improves only then (a 20-episode
 # mean of -150 after 68k-85k env steps); with -100 it gets there after 5k-25k (median 15k; tiles on the
 # held-out seeds 16k-48k), ends as high (-121.8 ± 10.3) in 1,260 cells, at half the time. Anything from -75
 # to -150 did as well; on MountainCar less optimism cost (-137 at its threshold, -110, against -127.5).
 # docs/RESULTS.md, "The general agent: how the planning defaults were chosen".
-_PLAN_ACROBOT = {**_PLAN_GENERAL, "scale": "spread", "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0], "v_opt": -100.0}
+_PLAN_ACROBOT = {**_PLAN_GENERAL, "scale": "spread", "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0],
+                 "v_opt": -100.0}
 
 # On CartPole-v1, ε-greedy exploration (epsilon 0.01) on top of the optimism. Without it, about one seed in ten
 # settles on a policy that balances the pole while the cart drifts off the track in ~150 steps: the planner's
