@@ -1,8 +1,8 @@
 """Compare every agent on the classic-control tasks and RobotMaze-v0, against a random policy.
 
-Tasks: MountainCar-v0, CartPole-v1 and Acrobot-v1 (the three classic-control tasks
+Tasks: MountainCar-v0, CartPole-v1, CartPole-v0 and Acrobot-v1 (the classic-control tasks
 of Gymnasium with ``Discrete`` actions; CartPole-v0 is CartPole-v1 with a 200-step
-limit), Pendulum-v1 with five torques (Gymnasium's ``DiscretizeAction``; no success
+limit and a threshold of 195), Pendulum-v1 with five torques (Gymnasium's ``DiscretizeAction``; no success
 rule: its greedy success is "-"), and avq/RobotMaze-v0. Agents: ``avq``, ``avq-sarsa``, ``avq-paper``, ``grid``,
 ``tiles``, ``grid-ps``, ``avq-plan``, and a ``random`` row (uniformly random actions; not an
 agent, it learns nothing). On the classic tasks ``avq`` is ``avq-plan`` with the same defaults,
@@ -15,7 +15,7 @@ For each task, agent and seed (seeds --first-seed .. --first-seed + --seeds - 1)
 - ``final_return``: the mean return over the last 10% of the training episodes;
 - ``greedy_return``, ``greedy_success``: 20 evaluation episodes with exploration off.
   Success per task (``avq.evaluation.SUCCESS_RULES``): MountainCar reaches the flag,
-  CartPole balances for the whole 500 steps, Acrobot swings the tip above the line
+  CartPole balances for the whole episode (500 steps; 200 on v0), Acrobot swings the tip above the line
   within 500 steps, RobotMaze reaches the goal;
 - ``cells``: cells (AVQ agents), bins visited (``grid``, ``grid-ps``) or tiles in use
   (``tiles``) at the end, and ``cells_10`` .. ``cells_100`` after 10%, 25%, 50% and
@@ -55,6 +55,7 @@ CARTPOLE_BOUNDS = [[-2.4, 2.4], [-3.0, 3.0], [-0.21, 0.21], [-3.5, 3.5]]
 TASKS = {
     "MountainCar-v0": ({}, 500, {}),
     "CartPole-v1": ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("grid", "tiles", "grid-ps")}),
+    "CartPole-v0": ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("grid", "tiles", "grid-ps")}),
     # (Acrobot's six dimensions: with tiles' defaults, 8 x 8 per dimension hashed into 4096 weights, the tiles collide
     # and it ended near -400 in 300 episodes, seeds 0-1; with 4 per dimension in a table of 65,536, about 6,700 tiles in
     # use and no collisions, -153 and -126. The baseline gets the better setting.)
@@ -67,14 +68,14 @@ TASKS = {
 #: task -> the return that the mean of the last 20 training episodes must reach: the usual "solved"
 #: levels of the classic tasks (Gym's reward_threshold for MountainCar and Acrobot; 195 is CartPole-v0's)
 #: and, on RobotMaze, reaching the goal with at most about 100 moves' worth of penalties.
-THRESHOLDS = {"MountainCar-v0": -150.0, "CartPole-v1": 195.0, "Acrobot-v1": -100.0, "Pendulum-v1": -200.0,
-              "avq/RobotMaze-v0": -100.0}
+THRESHOLDS = {"MountainCar-v0": -150.0, "CartPole-v1": 195.0, "CartPole-v0": 195.0, "Acrobot-v1": -100.0,
+              "Pendulum-v1": -200.0, "avq/RobotMaze-v0": -100.0}
 #: task -> torques: Pendulum's Box action space made Discrete by Gymnasium's DiscretizeAction wrapper (that many
 #: evenly spaced torques from -2 to 2), so that the agents for Discrete actions can run it.
 ACTION_BINS = {"Pendulum-v1": 5}
 AGENTS = ("avq", "avq-sarsa", "avq-paper", "grid", "tiles", "grid-ps", "avq-plan")
 #: task -> {agent: the agent it is the same as there (same class and defaults): not run twice}.
-SAME_AS = {t: {"avq-plan": "avq"} for t in ("MountainCar-v0", "CartPole-v1", "Acrobot-v1", "Pendulum-v1")}
+SAME_AS = {t: {"avq-plan": "avq"} for t in THRESHOLDS if t != "avq/RobotMaze-v0"}
 RANDOM = "random"
 WINDOW = 20  # episodes of the running mean that must reach the threshold
 EVAL_EPISODES = 20

@@ -381,6 +381,11 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     assert AVQSarsa("avq/GridMaze-v0").defaults_used is None  # built directly: the signature's defaults
     assert defaults_key("avq", "MountainCar-v0") == "*" and defaults_key("tabular", "avq/GridMaze-v0") == "*"
     assert defaults_key("avq", "CartPole-v1") == "CartPole-v1"
+    # CartPole-v0 (the same cart and pole, 200 steps) takes CartPole-v1's entry.
+    assert defaults_key("avq-plan", "CartPole-v0") == "CartPole-v0"
+    assert DEFAULTS["avq"]["CartPole-v0"] == DEFAULTS["avq-plan"]["CartPole-v0"] == DEFAULTS["avq"]["CartPole-v1"]
+    cartpole = make_agent("avq", gym.make("CartPole-v0"), seed=0)
+    assert cartpole.get_params()["epsilon"] == 0.01 and cartpole.get_params()["scale_factor"] == [1.0, 1.0, 0.5, 0.5]
     # One table: AGENTS and TASK_DEFAULTS hold DEFAULTS' own entries.
     for name, table in DEFAULTS.items():
         assert AGENTS[name][1] is table["*"]
