@@ -182,8 +182,9 @@ def threshold_cell(rs: list[dict]) -> str:
 
 
 def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
-    """The Markdown tables of the rows (the agents of ``SAME_AS`` left out where they are another)."""
-    run = lambda t: [a for a in agents if a not in SAME_AS.get(t, {})]  # noqa: E731
+    """The Markdown tables of the rows: each task with the agents that have rows there (not those of ``SAME_AS``,
+    where they are another), in the order of ``agents``."""
+    run = lambda t: [a for a in agents if any(r["task"] == t and r["agent"] == a for r in rows)]  # noqa: E731
     lines = ["| task | agent | final return (last 10%) | greedy return | greedy success | cells / features | "
              "env steps to threshold, runs there | env steps | s / run |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -242,7 +243,8 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs")
     ap.add_argument("--tasks", default=",".join(TASKS))
-    ap.add_argument("--agents", default=",".join(AGENTS), help=f"agent names, and {RANDOM!r} (added if left out, but with --update)")
+    ap.add_argument("--agents", default=",".join(AGENTS), help=f"agent names, and {RANDOM!r} (added if left out; with --update, "
+                                                          "on the tasks that have no rows of it)")
     ap.add_argument("--update", action="store_true",
                     help="keep the rows of OUT/data/compare.csv for the tasks and agents not run now, and write the "
                          "tables and figures of them all (the same seeds)")
@@ -264,16 +266,21 @@ def main() -> None:
     (out / "data").mkdir(parents=True, exist_ok=True)
     tasks = [t for t in args.tasks.split(",") if t]
     agents = [a for a in args.agents.split(",") if a]
-    agents += [RANDOM] if RANDOM not in agents and not args.update else []  # (--update: random's rows are kept)
-    jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale)), params) for t in tasks for a in agents
+    previous = previous_rows(out) if args.update else []
+    # The random policy runs on every task, unless asked for or (--update) its rows for the task are kept.
+    has_random = {r["task"] for r in previous if r["agent"] == RANDOM}
+    jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale)), params) for t in tasks
+            for a in agents + ([RANDOM] if RANDOM not in agents and t not in has_random else [])
             if a not in SAME_AS.get(t, {}) for s in range(args.first_seed, args.first_seed + args.seeds)]
     t0 = time.perf_counter()
     rows = Parallel(n_jobs=args.jobs, verbose=5)(delayed(run_one)(*j) for j in jobs)
     if args.update:
-        kept = [r for r in previous_rows(out) if (r["task"], r["agent"]) not in {(t, a) for t, a, *_ in jobs}]
+        kept = [r for r in previous if (r["task"], r["agent"]) not in {(t, a) for t, a, *_ in jobs}]
         rows = kept + rows
         tasks = list(dict.fromkeys([t for t in TASKS if any(r["task"] == t for r in rows)]))
         agents = list(dict.fromkeys([a for a in (*AGENTS, RANDOM) if any(r["agent"] == a for r in rows)]))
+    else:
+        agents = list(dict.fromkeys([*agents, *(a for _, a, *_ in jobs)]))
     mc = Parallel(n_jobs=args.jobs)(delayed(mountain_car_check)(s)
                                     for s in range(args.first_seed, args.first_seed + args.seeds)) \
         if "MountainCar-v0" in tasks else []
@@ -291,8 +298,8 @@ def main() -> None:
     from avq.plotting import plot_learning_curves
 
     for t in tasks:
-        curves = {a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a]
-                  for a in agents if a not in SAME_AS.get(t, {})}
+        curves = {a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a] for a in agents}
+        curves = {a: runs for a, runs in curves.items() if runs}  # (an agent not run on this task has no curve)
         plot_learning_curves(curves, out / "figures" / f"compare_{t.replace('/', '-')}.png", ylabel="return",
                              xlabel="episode", window=WINDOW,
                              title=f"{t}: return per episode, {args.seeds} seeds (threshold {THRESHOLDS[t]:g})")

@@ -76,6 +76,14 @@ def test_update_reruns_some_agents_and_keeps_the_rows_of_the_others(tmp_path):
     assert [(c["agent"], c["seed"]) for c in curves] == [(r["agent"], int(r["seed"])) for r in second]
     table = (tmp_path / "data" / "compare_table.md").read_text()
     assert all(f"| CartPole-v1 | {a} |" in table for a in ("avq", "grid", "random"))
+    # A task new to the file: the random policy runs there too (its rows on the other task are kept).
+    third = compare("--agents", "grid", "--tasks", "CartPole-v0", "--update")
+    assert third[:6] == second
+    assert [(r["task"], r["agent"], r["seed"]) for r in third[6:]] == [("CartPole-v0", a, s) for a in ("grid", "random")
+                                                                      for s in "01"]
+    table = (tmp_path / "data" / "compare_table.md").read_text()
+    assert all(f"| CartPole-v0 | {a} |" in table for a in ("grid", "random"))
+    assert (tmp_path / "figures" / "compare_CartPole-v0.png").stat().st_size > 10_000
 
 
 def test_set_gives_every_agent_run_a_parameter_on_top_of_the_tasks_settings():
