@@ -52,10 +52,11 @@ from joblib import Parallel, delayed
 CARTPOLE_BOUNDS = [[-2.4, 2.4], [-3.0, 3.0], [-0.21, 0.21], [-3.5, 3.5]]
 
 #: task -> (env kwargs, training episodes, per-agent parameter overrides)
+_CARTPOLE = ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("grid", "tiles", "grid-ps")})  # (v1 and v0)
 TASKS = {
     "MountainCar-v0": ({}, 500, {}),
-    "CartPole-v1": ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("grid", "tiles", "grid-ps")}),
-    "CartPole-v0": ({}, 500, {a: {"obs_bounds": CARTPOLE_BOUNDS} for a in ("grid", "tiles", "grid-ps")}),
+    "CartPole-v1": _CARTPOLE,
+    "CartPole-v0": _CARTPOLE,
     # (Acrobot's six dimensions: with tiles' defaults, 8 x 8 per dimension hashed into 4096 weights, the tiles collide
     # and it ended near -400 in 300 episodes, seeds 0-1; with 4 per dimension in a table of 65,536, about 6,700 tiles in
     # use and no collisions, -153 and -126. The baseline gets the better setting.)
@@ -181,10 +182,15 @@ def threshold_cell(rs: list[dict]) -> str:
     return f"{txt}, {int((~never).sum())}/{len(rs)}"
 
 
+def run_on(rows: list[dict], task: str, agents: list[str]) -> list[str]:
+    """The agents that have rows on the task (not those of ``SAME_AS``, where they are another), in the order of
+    ``agents``."""
+    return [a for a in agents if any(r["task"] == task and r["agent"] == a for r in rows)]
+
+
 def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
-    """The Markdown tables of the rows: each task with the agents that have rows there (not those of ``SAME_AS``,
-    where they are another), in the order of ``agents``."""
-    run = lambda t: [a for a in agents if any(r["task"] == t and r["agent"] == a for r in rows)]  # noqa: E731
+    """The Markdown tables of the rows: each task with the agents run there (:func:`run_on`)."""
+    run = lambda t: run_on(rows, t, agents)  # noqa: E731
     lines = ["| task | agent | final return (last 10%) | greedy return | greedy success | cells / features | "
              "env steps to threshold, runs there | env steps | s / run |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -298,8 +304,8 @@ def main() -> None:
     from avq.plotting import plot_learning_curves
 
     for t in tasks:
-        curves = {a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a] for a in agents}
-        curves = {a: runs for a, runs in curves.items() if runs}  # (an agent not run on this task has no curve)
+        curves = {a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a]
+                  for a in run_on(rows, t, agents)}
         plot_learning_curves(curves, out / "figures" / f"compare_{t.replace('/', '-')}.png", ylabel="return",
                              xlabel="episode", window=WINDOW,
                              title=f"{t}: return per episode, {args.seeds} seeds (threshold {THRESHOLDS[t]:g})")
