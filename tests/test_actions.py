@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from avq import AGENTS, make_agent
-from avq.agents.actions import (
+from avq.agents.actions.agent import (
     ActionCodebookSarsa,
     gabriel_neighbours,
     merged_vector,

@@ -281,7 +281,7 @@ def test_every_agent_refuses_a_non_finite_first_observation(scripted, name):
 
 
 def test_epsilon_schedule_decays_per_episode_to_its_floor_and_survives_loading(tmp_path):
-    from avq.agents import _avq_core as core
+    from avq.agents.avq_sarsa import kernels as core
 
     agent = make_agent("avq-maze", maze(), seed=0, epsilon=0.4, epsilon_decay=0.5, epsilon_min=0.06)
     seen = []
@@ -298,7 +298,7 @@ def test_epsilon_schedule_decays_per_episode_to_its_floor_and_survives_loading(t
 
 
 def test_alpha_schedule_decays_per_episode_and_is_the_step_of_the_updates(tmp_path):
-    from avq.agents import _avq_core as core
+    from avq.agents.avq_sarsa import kernels as core
 
     agent = make_agent("avq-maze", maze(), seed=0, alpha=0.8, alpha_decay=0.5, alpha_min=0.15)
     seen = []

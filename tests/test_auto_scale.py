@@ -8,7 +8,7 @@ import pytest
 
 import avq
 from avq import AVQSarsa, make_agent
-from avq.agents import _avq_core as core
+from avq.agents.avq_sarsa import kernels as core
 
 INF = np.inf
 #: The bounds the README once gave CartPole-v1 for ``avq``.

@@ -9,7 +9,7 @@ import pytest
 
 from avq import AVQSarsa
 from avq._random import RawStream
-from avq.agents import _avq_core as core
+from avq.agents.avq_sarsa import kernels as core
 from avq.agents._td import decide, sarsa_lambda, sarsa_td_error, trace_update
 from avq.rules import APPEND, CHI, KEEP, collision_rule, merge_profiles, similar_profiles
 
@@ -380,7 +380,7 @@ def test_merge_age_keeps_young_cells_apart():
     ([-1.2, -1.0], False, True),   # the paper merges on the profile difference alone
 ])
 def test_merge_same_action_guard(q1, same_action_guard, merged):
-    from avq.agents import _avq_core as core
+    from avq.agents.avq_sarsa import kernels as core
 
     ep = ((0, 0), [((3, 0), -10, NO, True, True)])
     agent, _ = agent_for([ep], rho=100.0, merge_every=0, merge_same_action=same_action_guard)
@@ -429,7 +429,7 @@ def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
 
 def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
     from avq._kernels import mutual_nearest_pairs_kernel
-    from avq.agents import _avq_core as core
+    from avq.agents.avq_sarsa import kernels as core
 
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     one = np.ones(2)
@@ -566,7 +566,7 @@ def test_prune_after_removes_cells_without_decisions_for_that_many_episodes():
 
 
 def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
-    from avq.agents import _avq_core as core
+    from avq.agents.avq_sarsa import kernels as core
 
     # By hand: Q[0] = (1, 0.5), counts (1, 0), bonus 2: 1 + 2/sqrt(2) = 2.414 < 0.5 + 2/sqrt(1) = 2.5.
     Q = np.array([[1.0, 0.5]])
@@ -595,7 +595,7 @@ def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
 
 @pytest.mark.parametrize("make_room, refused", [(False, 2), (True, 0), (True, 1), (True, 2)])
 def test_make_room_merges_as_many_more_same_action_pairs_as_growth_was_refused(make_room, refused):
-    from avq.agents import _avq_core as core
+    from avq.agents.avq_sarsa import kernels as core
 
     # Three nearest pairs, far apart: (0, 1), (2, 3), (4, 5), none similar enough for rho = 1.
     # Same greedy action in (0, 1) (difference 9) and (2, 3) (difference 4); not in (4, 5).

@@ -8,7 +8,7 @@ import pytest
 from gymnasium.wrappers import RecordEpisodeStatistics, TimeLimit
 
 import avq
-from avq.agents import _fused
+from avq.agents import _maze_loop
 from avq.envs import GridMaze, RobotMaze
 from avq.envs.compiled import NO_LIMIT, compiled_maze
 
@@ -54,9 +54,9 @@ def test_only_gymnasiums_standard_wrappers_and_the_mazes_themselves_are_compiled
 
     assert compiled_maze(RecordEpisodeStatistics(gym.make("avq/GridMaze-v0"))) is None
     assert compiled_maze(MyMaze()) is None  # a subclass may step differently
-    assert _fused.plan(gym.make("avq/RobotMaze-v0", sonar_noise=0.1)) is None
-    assert _fused.plan(gym.make("avq/RobotMaze-v0"), grid_only=True) is None
-    assert _fused.plan(gym.make("avq/RobotMaze-v0")) is not None
+    assert _maze_loop.plan(gym.make("avq/RobotMaze-v0", sonar_noise=0.1)) is None
+    assert _maze_loop.plan(gym.make("avq/RobotMaze-v0"), grid_only=True) is None
+    assert _maze_loop.plan(gym.make("avq/RobotMaze-v0")) is not None
 
 
 def test_episode_state_is_read_and_written_so_that_step_goes_on_from_there():

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents import _model
-from avq.agents import _plan_core as core
+from avq.agents.plan import model as _model
+from avq.agents.plan import kernels as core
 
 from conftest import ScriptedEnv
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents import _model
-from avq.agents import _plan_core as core
-from avq.agents._model import BACKUPS, HEAP_N, KNOWN, Model
+from avq.agents.plan import model as _model
+from avq.agents.plan import kernels as core
+from avq.agents.plan.model import BACKUPS, HEAP_N, KNOWN, Model
 
 
 def model(m=2, v_opt=10.0, v_min=-100.0, known=1, tol=1e-9, states=3):

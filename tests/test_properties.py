@@ -23,7 +23,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, 
 
 from avq import AVQSarsa
 from avq._kernels import compact_rows, merge_kernel, mutual_nearest_pairs_kernel
-from avq.agents import _avq_core as core
+from avq.agents.avq_sarsa import kernels as core
 from avq.quantizer import _TREE_THRESHOLD, Codebook
 from avq.rules import mean_square_difference, merge_profiles
 

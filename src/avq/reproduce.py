@@ -320,10 +320,10 @@ def _kernels_cached() -> bool:
     """Whether Numba's on-disk cache already holds the fused maze loop (else the first run compiles)."""
     import numba
 
-    from avq.agents import _fused
+    from avq.agents.avq_sarsa import fused
 
-    cache_dir = Path(numba.config.CACHE_DIR or Path(_fused.__file__).parent / "__pycache__")
-    return cache_dir.is_dir() and any(cache_dir.rglob("_fused.run_*.nbi"))
+    cache_dir = Path(numba.config.CACHE_DIR or Path(fused.__file__).parent / "__pycache__")
+    return cache_dir.is_dir() and any(cache_dir.rglob("fused.run_*.nbi"))
 
 
 def format_table(summary: dict[str, Any]) -> str:

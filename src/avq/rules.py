@@ -1,7 +1,7 @@
 """The paper's codebook rules as named functions (SPEC §3 and §4).
 
 Each function decides (or, for the merged profile, computes); the agent's kernels
-(:mod:`avq.agents._avq_core`) call them and apply the decisions to the codebook and the
+(:mod:`avq.agents.avq_sarsa.kernels`) call them and apply the decisions to the codebook and the
 values. Read them against SPEC.md line by line.
 """
 

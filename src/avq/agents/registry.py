@@ -25,14 +25,14 @@ from typing import Any, NamedTuple
 
 import gymnasium as gym
 
-from avq.agents.actions import ActionCodebookSarsa
-from avq.agents.avq_plan import PlanningAVQ
-from avq.agents.avq_sarsa import AVQSarsa
+from avq.agents.actions.agent import ActionCodebookSarsa
+from avq.agents.plan.agent import PlanningAVQ
+from avq.agents.avq_sarsa.agent import AVQSarsa
 from avq.agents.base import BaseAgent
-from avq.agents.grid import GridSarsa
-from avq.agents.sweeping import PrioritizedSweeping
-from avq.agents.tabular import TabularSarsa
-from avq.agents.tiles import TileSarsa
+from avq.agents.baselines.grid import GridSarsa
+from avq.agents.plan.sweeping import PrioritizedSweeping
+from avq.agents.baselines.tabular import TabularSarsa
+from avq.agents.baselines.tiles import TileSarsa
 
 __all__ = ["AGENTS", "CLASSES", "DEFAULTS", "DefaultsUsed", "PLANNING_PARAMS", "SUMMARIES", "TASK_CLASSES",
            "TASK_DEFAULTS", "agent_class", "agent_defaults", "defaults_key", "make_agent"]

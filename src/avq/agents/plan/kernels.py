@@ -2,7 +2,7 @@
 
 The agent acts as AVQ does (SPEC §2: one decision per cell, repeated until the cell changes, a
 collision, or the end of the episode). Each aggregate transition ``(i, a) -> j`` of ``k`` steps,
-return ``R`` and discount ``gamma ** k`` is recorded in the model of :mod:`avq.agents._model`
+return ``R`` and discount ``gamma ** k`` is recorded in the model of :mod:`avq.agents.plan.model`
 (cell = model state) and planned over by prioritized sweeping; the decisions are ε-greedy on
 the planned values, which are optimistic for pairs not yet tried.
 
@@ -25,7 +25,7 @@ to the new one), so that the model describes the current partition by what was s
   per unit of scaled distance travelled, estimated from the transitions without collisions unless
   ``value_slope`` is given). The cell's squares then disagree about that decision for a reason of
   structure (a wall, a dead end), not of distance: :func:`split_cell` cuts it in two around the two
-  starts. Only outcomes that end in :func:`~avq.agents._model.settled` cells are compared, and only
+  starts. Only outcomes that end in :func:`~avq.agents.plan.model.settled` cells are compared, and only
   when the worse one is below the cell's next best decision (the split would change the policy).
 * ``cycle`` (as ``AVQSarsa``'s ``cycle_split``): when two decisions the model knew lead from a cell ``j``
   to another and straight back into ``j``, the square of the return gets a cell of its own.
@@ -36,7 +36,7 @@ the codebook, so that a caller may keep the cells of observations it sees again)
 started the current transition; the memory ``mem_x`` ``(M, 2n)`` start and end observations,
 ``mem_i`` ``(M, 3)`` action, start cell, end cell (-1: terminal), ``mem_f`` ``(M, 2)`` return and
 discount; ``e_xs`` ``(edges, n)`` the sum of the starts of each edge's transitions. The model's
-arrays follow (:class:`avq.agents._model.ModelArrays`).
+arrays follow (:class:`avq.agents.plan.model.ModelArrays`).
 """
 
 from __future__ import annotations
@@ -47,8 +47,8 @@ import numpy as np
 from numba import njit
 
 from avq._kernels import nearest_index, scaled_distance
-from avq.agents import _model
-from avq.agents._model import FIRST, push, record, settled
+from avq.agents.plan import model as _model
+from avq.agents.plan.model import FIRST, push, record, settled
 from avq.agents._td import epsilon_greedy
 from avq.rules import APPEND, collision_rule
 
@@ -119,7 +119,7 @@ def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_s
 @njit(cache=True, inline="always")
 def _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, e_xs, X, t: int,
             s: int, a: int, r: float, disc: float, s2: int, sign: int) -> None:
-    """:func:`avq.agents._model.record`, and the transition's start ``X[t, :n]`` added to (or removed from)
+    """:func:`avq.agents.plan.model.record`, and the transition's start ``X[t, :n]`` added to (or removed from)
     its edge's sum of starts."""
     e = record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2,
                sign)
@@ -297,7 +297,7 @@ def remember(IP, S, xs, x, mem_x, mem_i, mem_f, a: int, i: int, j: int, R: float
 
 @njit(cache=True)
 def end_record(S, F, rec_row) -> None:
-    """The finished episode's record row (the columns of ``avq.agents._avq_core.R_*``): steps, return, cells,
+    """The finished episode's record row (the columns of ``avq.agents.avq_sarsa.kernels.R_*``): steps, return, cells,
     appends, merges (none), refused, decisions."""
     rec_row[0] = S[EP_STEPS]
     rec_row[1] = F[EP_RETURN]

@@ -11,9 +11,11 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
-from avq.agents import _fused, _model
-from avq.agents.grid import bin_coordinates, uniform_grid
-from avq.agents._table import greedy_over_rows, observation_key
+from avq.agents import _maze_loop
+from avq.agents.plan import model as _model
+from avq.agents.plan.fused import run_ps_grid_maze
+from avq.agents.baselines.grid import bin_coordinates, uniform_grid
+from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 
@@ -24,7 +26,7 @@ class PrioritizedSweeping(BaseAgent):
     """Model-based RL: a learned model of every (observation, action) pair and prioritized sweeping over it.
 
     Each distinct observation is a state (as in ``tabular``). The model counts, for each pair, its
-    successors and the mean reward (src/avq/agents/_model.py), so it is right for stochastic tasks.
+    successors and the mean reward (src/avq/agents/plan/model.py), so it is right for stochastic tasks.
     A pair tried fewer than ``known_after`` times is worth ``v_opt`` (optimism, as in R-max: the agent
     goes to try it). After every step the pair's state is backed up from the model and at most
     ``n_backups`` more states, those whose values the change moves most, are backed up; the queue
@@ -186,16 +188,16 @@ class PrioritizedSweeping(BaseAgent):
         return episode_record(self._ep_steps, self._ep_return, self.n_cells, self._ep_new)
 
     def _fused_runner(self):
-        maze = (_fused.plan(self.env, grid_only=True) if self.fused and not self._discrete and self.bins is None
+        maze = (_maze_loop.plan(self.env, grid_only=True) if self.fused and not self._discrete and self.bins is None
                 else None)
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer states than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
-        args = _fused.maze_arguments(maze)
+        args = _maze_loop.maze_arguments(maze)
         model = self._model
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return _fused.run_ps_grid_maze(*model.a, row_of, keys, T, TF, self.gamma, self.epsilon, self.n_backups,
+            return run_ps_grid_maze(*model.a, row_of, keys, T, TF, self.gamma, self.epsilon, self.n_backups,
                                            self._rng, maze.np_random, *args, pos, budget_steps, budget_episodes, rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
@@ -210,7 +212,7 @@ class PrioritizedSweeping(BaseAgent):
                          dtype=np.int64)
             TF = np.array([self._ep_return])
             first_new = model.n_states
-            steps, rows = _fused.drive(maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps,
+            steps, rows = _maze_loop.drive(maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps,
                                        max_episodes, max_records)
             for row in range(first_new, model.n_states):
                 key = (float(keys[row, 0]), float(keys[row, 1]))

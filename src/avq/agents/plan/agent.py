@@ -9,8 +9,10 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
-from avq.agents import _fused, _model
-from avq.agents import _plan_core as core
+from avq.agents import _maze_loop
+from avq.agents.plan import model as _model
+from avq.agents.plan.fused import run_plan_maze
+from avq.agents.plan import kernels as core
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
                                 refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
@@ -26,10 +28,10 @@ class PlanningAVQ(BaseAgent):
     changes, a collision, or the end of the episode (SPEC §2). Each such aggregate transition is
     recorded in a model of the cells (successor counts, mean return and discount, so one
     decision is an SMDP step), and the values are planned from the model by prioritized sweeping
-    with ``n_backups`` backups per transition (src/avq/agents/_model.py). Pairs of a cell and an
+    with ``n_backups`` backups per transition (src/avq/agents/plan/model.py). Pairs of a cell and an
     action tried fewer than ``known_after`` times are worth ``v_opt``, so the agent tries each
     decision of each cell: it explores coarse to fine. Cells grow by the paper's collision rule
-    and where a decision's outcome disagrees with the model (src/avq/agents/_plan_core.py).
+    and where a decision's outcome disagrees with the model (src/avq/agents/plan/kernels.py).
 
     Args:
         env: A Gymnasium environment (or registered id) with a ``Box`` observation space and
@@ -46,7 +48,7 @@ class PlanningAVQ(BaseAgent):
             vector, append the observation (SPEC §3).
         outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by
             more than ``split_threshold`` beyond what the distance between their starts explains
-            (src/avq/agents/_plan_core.py).
+            (src/avq/agents/plan/kernels.py).
         split_threshold: That excess, > 0.
         cycle_split: When two decisions lead from a cell to another and straight back, give the square
             of the return a cell of its own (as ``AVQSarsa``'s ``cycle_split``).
@@ -288,21 +290,21 @@ class PlanningAVQ(BaseAgent):
         core.end_record(self._S, self._F, row)
         return episode_record(*row)
 
-    # -- the fused loop (avq.agents._fused) ------------------------------------------------
+    # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------
     def _fused_runner(self):
         # (The fused loops estimate no scale; the bounded mazes they run need none.)
-        maze = _fused.plan(self.env) if self.fused and not self._estimated.any() else None
+        maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
-        args = _fused.maze_arguments(maze)
+        args = _maze_loop.maze_arguments(maze)
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return _fused.run_plan_maze(*self._arrays(), self._rng, maze.np_random, *args, pos, budget_steps,
+            return run_plan_maze(*self._arrays(), self._rng, maze.np_random, *args, pos, budget_steps,
                                         budget_episodes, rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
-            steps, rows = _fused.drive(maze, kernel, self._make_room, max_steps, max_episodes, max_records)
+            steps, rows = _maze_loop.drive(maze, kernel, self._make_room, max_steps, max_episodes, max_records)
             return steps, rows, bool(self._S[core.IN_EPISODE])
 
         return run

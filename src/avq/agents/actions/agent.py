@@ -39,7 +39,7 @@ from avq._validate import (
 )
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
-from avq.agents.tiles import advance_tile_sarsa
+from avq.agents.baselines.tiles import advance_tile_sarsa
 from avq.tilecoding import TileCoder
 
 __all__ = ["ActionCodebookSarsa", "gabriel_neighbours", "merged_vector", "plan_growth", "plan_merges",

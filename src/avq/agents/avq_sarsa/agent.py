@@ -11,8 +11,9 @@ import numba
 from numba.core.errors import TypingError
 
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
-from avq.agents import _avq_core as core
-from avq.agents import _fused
+from avq.agents.avq_sarsa import kernels as core
+from avq.agents import _maze_loop
+from avq.agents.avq_sarsa.fused import run_avq_maze
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
                                 refresh_scale, scale_setting, scale_state)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
@@ -289,7 +290,7 @@ class AVQSarsa(BaseAgent):
     def _allocate(self, cap: int) -> None:
         """(Re)make the agent's arrays for ``cap`` cells, keeping what they hold.
 
-        Every array is a view of two flat buffers (see :func:`avq.agents._avq_core.unpack`), which the
+        Every array is a view of two flat buffers (see :func:`avq.agents.avq_sarsa.kernels.unpack`), which the
         generic path hands to its one compiled call per step.
         """
         n, m = self.env.observation_space.shape[0], self.n_actions
@@ -347,7 +348,7 @@ class AVQSarsa(BaseAgent):
             raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._V.shape[1:]}")
         return x
 
-    # -- the episode loop (SPEC §2, §5; the rules are in avq.agents._avq_core) --------------
+    # -- the episode loop (SPEC §2, §5; the rules are in avq.agents.avq_sarsa.kernels) --------------
     def _compiled(self, kernel, obs: np.ndarray, step: int, r: Any, *args: Any) -> int:
         """``kernel(buffers, draws, obs, *args)``, growing the arrays or the draws when it asks for them;
         raises for an observation of the wrong shape, or an observation or reward that is not finite."""
@@ -420,21 +421,21 @@ class AVQSarsa(BaseAgent):
         core.end_episode(*self._state(), self._rec)
         return episode_record(*self._rec)
 
-    # -- the fused loop (avq.agents._fused) ------------------------------------------------
+    # -- the fused loop (avq.agents.avq_sarsa.fused) ------------------------------------------------
     def _fused_runner(self):
         # (The fused loops estimate no scale; the bounded mazes they run need none.)
-        maze = _fused.plan(self.env) if self.fused and not self._estimated.any() else None
+        maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
-        args = _fused.maze_arguments(maze)
+        args = _maze_loop.maze_arguments(maze)
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return _fused.run_avq_maze(*self._state(), self._rng, maze.np_random, *args, pos, budget_steps,
+            return run_avq_maze(*self._state(), self._rng, maze.np_random, *args, pos, budget_steps,
                                        budget_episodes, rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
-            steps, rows = _fused.drive(maze, kernel, lambda: self._ensure_capacity(4), max_steps, max_episodes,
+            steps, rows = _maze_loop.drive(maze, kernel, lambda: self._ensure_capacity(4), max_steps, max_episodes,
                                        max_records)
             return steps, rows, bool(self._S[core.IN_EPISODE])
 

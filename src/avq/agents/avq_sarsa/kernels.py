@@ -5,7 +5,7 @@ One implementation of the agent's rules serves both paths:
 * the generic path (any Gymnasium environment) steps the environment in Python
   and makes one compiled call per step, :func:`generic_step` (:func:`observe`,
   then at the end of an aggregate transition :func:`decide` and :func:`learn`);
-* the fused paths (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``, :mod:`avq.agents._fused`)
+* the fused paths (``avq/GridMaze-v0``, ``avq/RobotMaze-v0``, :mod:`avq.agents.avq_sarsa.fused`)
   run the environment's dynamics and these same kernels inside one compiled loop.
 
 The update rules themselves (ε-greedy, the TD error, the Sarsa(λ) update) are those of
@@ -37,6 +37,7 @@ from numba import njit
 from avq._kernels import (borrowed, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index,
                           nearest_pairs_kernel, scaled_distance)
 from avq._random import DRAWS_PER_DECISION
+from avq.agents._maze_loop import N_R, R_APPENDS, R_CELLS, R_DECISIONS, R_MERGES, R_REFUSED, R_RETURN, R_STEPS  # noqa: F401
 from avq.agents._td import clear_traces, epsilon_greedy, greedy_ties, sarsa_lambda, sarsa_td_error
 from avq.rules import APPEND as APPEND_OUTCOME
 from avq.rules import CHI as CHI_OUTCOME
@@ -58,11 +59,6 @@ N_S = 13
 # F: float state
 RET, DISC, EP_RETURN, PREV_R = range(4)
 N_F = 4
-# Records written by the fused loops, one row per episode.
-R_STEPS, R_RETURN, R_CELLS, R_APPENDS, R_MERGES, R_REFUSED, R_DECISIONS = range(7)
-N_R = 7
-# Status returned by the fused loops.
-DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
 # Returned by observe() for an observation or reward that is NaN or infinite.
 NOT_FINITE = -2
 

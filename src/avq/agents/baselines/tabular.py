@@ -9,8 +9,9 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_sarsa_params
-from avq.agents import _fused
-from avq.agents._table import TableSarsa, greedy_over_rows, observation_key
+from avq.agents import _maze_loop
+from avq.agents.baselines.fused import run_tabular_grid_maze
+from avq.agents.baselines.table import TableSarsa, greedy_over_rows, observation_key
 
 __all__ = ["TabularSarsa"]
 
@@ -104,11 +105,11 @@ class TabularSarsa(TableSarsa):
         return row
 
     def _fused_runner(self):
-        maze = _fused.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
+        maze = _maze_loop.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer rows than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
-        args = _fused.maze_arguments(maze)
+        args = _maze_loop.maze_arguments(maze)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
@@ -123,12 +124,12 @@ class TabularSarsa(TableSarsa):
             TF = np.array([self._ep_return])
 
             def kernel(pos, budget_steps, budget_episodes, rec):
-                return _fused.run_tabular_grid_maze(
+                return run_tabular_grid_maze(
                     self._q, self._e, self._act, row_of, keys, T, TF, self.alpha, self.gamma, self.lam,
                     self.epsilon, self.traces == "replacing", self._rng, maze.np_random, *args, pos, budget_steps,
                     budget_episodes, rec)
 
-            steps, rows = _fused.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)
+            steps, rows = _maze_loop.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)
             for row in range(self._n, int(T[0])):
                 key = (float(keys[row, 0]), float(keys[row, 1]))
                 self._index[key] = row

@@ -1,0 +1,132 @@
+"""The shared driver of fused training: a built-in maze's dynamics and an agent's rules in one compiled loop.
+
+:func:`plan` decides whether an environment can be fused: a ``GridMaze``, or a ``RobotMaze``
+with noise-free sonar, under Gymnasium's standard wrappers (:func:`avq.envs.compiled.compiled_maze`).
+Each agent family writes its own loop (``avq_sarsa/fused.py``, ``plan/fused.py``,
+``baselines/fused.py``); they read the maze only through its public, frozen description
+(:class:`~avq.envs.grid_maze.GridDynamics`, :class:`~avq.envs.robot_maze.RobotDynamics`), the
+arguments :func:`maze_arguments` makes of it, and step it with :func:`maze_start`,
+:func:`maze_move` and :func:`maze_observation` here. They call the very kernels of the generic
+path, draw from the same generators in the same order (the agent's for its decisions, the
+environment's ``np_random`` for start positions) and apply the same step limit, so that with the
+same seed both paths give identical results.
+
+A loop runs until a budget of steps or episodes is spent and returns ``(steps, episodes,
+status)``, writing one record row per finished episode (columns ``R_*``); :func:`drive` calls it,
+grows the agent's arrays when asked, and hands the episode back to the environment object
+(position and elapsed steps), so that stepping it from Python goes on from there.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from numba import njit
+
+from avq.envs.compiled import CompiledMaze, compiled_maze
+from avq.envs.grid_maze import GridDynamics, grid_move, slipped
+from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
+
+__all__ = ["plan", "maze_arguments", "drive", "maze_start", "maze_move", "maze_observation", "DONE", "NEED_CAPACITY",
+           "RECORDS_FULL", "N_R"]
+
+# Records written by the fused loops, one row per episode.
+R_STEPS, R_RETURN, R_CELLS, R_APPENDS, R_MERGES, R_REFUSED, R_DECISIONS = range(7)
+N_R = 7
+# Status returned by the fused loops.
+DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
+
+
+def plan(env, grid_only: bool = False) -> CompiledMaze | None:
+    """The maze a fused loop can run for ``env``, or None (step the environment from Python).
+
+    Fused: a ``GridMaze``, or (unless ``grid_only``) a ``RobotMaze`` with noise-free sonar, under
+    Gymnasium's standard wrappers only; any other wrapper may change what a step does.
+    """
+    maze = compiled_maze(env)
+    if maze is None:
+        return None
+    if isinstance(maze.dynamics, GridDynamics):
+        return maze
+    if grid_only or maze.dynamics.sonar_noise != 0.0:
+        return None
+    return maze
+
+
+def maze_arguments(maze: CompiledMaze) -> tuple:
+    """The maze's part of a fused loop's arguments: ``(robot, walls, gx, gy, starts, fixed, move,
+    radius, slip, dirs, sonar_range, observe_sonar, max_episode_steps)``; ``fixed`` is the fixed start,
+    or NaN for random starts."""
+    d = maze.dynamics
+    fixed = np.array(d.fixed_start if d.fixed_start is not None else (np.nan, np.nan), dtype=np.float64)
+    if isinstance(d, GridDynamics):
+        return (False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0, d.slip,
+                np.zeros((0, 2)), 0.0, False, maze.max_episode_steps)
+    return (True, d.grid, d.goal[0], d.goal[1], d.starts, fixed, d.move, d.radius, 0.0, d.sonar_directions,
+            d.sonar_range, d.observe_sonar, maze.max_episode_steps)
+
+
+def drive(maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int,
+          max_records: int) -> tuple[int, np.ndarray]:
+    """Run ``kernel(pos, budget_steps, budget_episodes, rec)`` from the environment's current episode
+    until a budget is spent; returns ``(steps, records)`` and leaves the environment where the loop
+    stopped. ``grow()`` makes room when the kernel returns ``NEED_CAPACITY``."""
+    pos = np.array(maze.episode_state(), dtype=np.float64)  # x, y, steps elapsed in the episode
+    rec = np.zeros((min(max_episodes, max_records), N_R))
+    steps = episodes = 0
+    while True:
+        n, eps, status = kernel(pos, max_steps - steps, len(rec) - episodes, rec[episodes:])
+        steps += n
+        episodes += eps
+        if status != NEED_CAPACITY:
+            break
+        grow()
+    maze.set_episode_state(pos[0], pos[1], int(pos[2]))
+    return steps, rec[:episodes]
+
+
+@njit(cache=True, inline="always")
+def maze_start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius) -> None:
+    """A new episode's start, drawn as the maze's ``reset`` draws it."""
+    if fixed[0] == fixed[0]:  # not NaN: a fixed start
+        pos[0] = fixed[0]
+        pos[1] = fixed[1]
+    elif robot:
+        pos[0], pos[1] = random_start(env_rng, starts, walls, radius, gx, gy)
+    else:
+        k = env_rng.integers(0, starts.shape[0])
+        pos[0] = starts[k, 0]
+        pos[1] = starts[k, 1]
+    pos[2] = 0.0
+
+
+@njit(cache=True, inline="always")
+def maze_move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip):
+    """One step of the maze from ``pos`` (in place): ``(reward, terminated, collision)``. GridMaze's
+    moves slip as its ``step`` makes them slip (from the maze's generator)."""
+    if robot:
+        pos[0], pos[1], r, terminated, collision = robot_move(walls, pos[0], pos[1], a, move, radius, gx, gy)
+    else:
+        a = slipped(env_rng, a, slip)
+        nx, ny, r, terminated, collision = grid_move(walls, int(pos[0]), int(pos[1]), a, int(gx), int(gy))
+        pos[0] = nx
+        pos[1] = ny
+    pos[2] += 1.0
+    return r, terminated, collision
+
+
+@njit(cache=True, inline="always")
+def maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar) -> None:
+    """The observation at ``pos`` as the agent sees it: GridMaze's integer ``(x, y)``; RobotMaze's
+    float32 values (and sonar ranges), as float64."""
+    if not robot:
+        x[0] = pos[0]
+        x[1] = pos[1]
+        return
+    x[0] = np.float64(np.float32(pos[0]))
+    x[1] = np.float64(np.float32(pos[1]))
+    if observe_sonar:
+        sonar_ranges(walls, pos[0], pos[1], radius, dirs, sonar_range, sonar)
+        for k in range(sonar.shape[0]):
+            x[2 + k] = np.float64(np.float32(sonar[k]))

@@ -1,0 +1,82 @@
+"""AVQ Sarsa(λ) trained on a built-in maze inside one compiled loop (the shared driver:
+:mod:`avq.agents._maze_loop`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from avq._kernels import borrowed, nearest_index
+from avq.agents._maze_loop import DONE, NEED_CAPACITY, RECORDS_FULL, maze_move, maze_observation, maze_start
+from avq.agents.avq_sarsa.kernels import (ACTION, GEOM, IN_EPISODE, SIZE, begin_episode, decide, end_episode, learn,
+                                          observe, observe_at)
+
+__all__ = ["run_avq_maze"]
+
+
+@njit(cache=True)
+def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
+                 robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
+                 max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Train AVQ Sarsa(λ) on a maze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
+
+    The maze's arguments are those of :func:`maze_arguments`; ``pos`` holds the robot's ``x, y`` and
+    the steps taken in the current episode. On GridMaze, the nearest cell of every square is kept
+    while the codebook does not change. Returns ``(steps, episodes, status)``.
+    """
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
+        borrowed(V), borrowed(Q), borrowed(E), borrowed(born), borrowed(act), borrowed(pc),
+        borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F))
+    walls, starts, dirs, pos, rec = borrowed(walls), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
+    cap = V.shape[0]
+    scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
+    steps = 0
+    episodes = 0
+    cache_shape = (1, 1) if robot else walls.shape
+    cell_cache = np.full(cache_shape, -1, dtype=np.int64)
+    dist_cache = np.zeros(cache_shape)
+    cache_geom = -1
+    x = np.empty(V.shape[1])
+    sonar = np.empty(dirs.shape[0])
+    while True:
+        if S[IN_EPISODE] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            if S[SIZE] + 1 > cap:
+                return steps, episodes, NEED_CAPACITY
+            maze_start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
+            maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+            cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
+            S[ACTION] = decide(rng, Q, born, P, cell, scr)
+        if steps >= budget_steps:
+            return steps, episodes, DONE
+        if S[SIZE] + 3 > cap:
+            return steps, episodes, NEED_CAPACITY
+        a = S[ACTION]
+        r, terminated, collision = maze_move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip)
+        truncated = pos[2] >= max_episode_steps
+        maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+        steps += 1
+        done = terminated or truncated
+        if robot:
+            j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r, collision, done)
+        else:
+            if cache_geom != S[GEOM]:
+                cell_cache[:, :] = -1
+                cache_geom = S[GEOM]
+            iy, ix = int(pos[1]), int(pos[0])
+            if cell_cache[iy, ix] < 0:
+                c, d2 = nearest_index(V, S[SIZE], x, inv_scale)
+                cell_cache[iy, ix] = c
+                dist_cache[iy, ix] = np.sqrt(d2)
+            j = observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done,
+                           cell_cache[iy, ix], dist_cache[iy, ix])
+        if j < 0:
+            continue
+        a_next = a if terminated else decide(rng, Q, born, P, j, scr)
+        learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
+        if done:
+            end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
+            episodes += 1

@@ -1,0 +1,79 @@
+"""Tabular Sarsa(λ) trained on a GridMaze inside one compiled loop (the shared driver:
+:mod:`avq.agents._maze_loop`)."""
+
+from __future__ import annotations
+
+from numba import njit
+
+from avq._kernels import borrowed
+from avq.agents._maze_loop import DONE, RECORDS_FULL, maze_move, maze_start
+from avq.agents._td import clear_traces, epsilon_greedy, table_step
+
+__all__ = ["run_tabular_grid_maze"]
+
+
+@njit(cache=True, inline="always")
+def _table_row(row_of, keys, T, x, y):
+    """The table row of position (x, y), created (in order of first visit) when new."""
+    r = row_of[y, x]
+    if r < 0:
+        r = T[0]
+        row_of[y, x] = r
+        keys[r, 0] = x
+        keys[r, 1] = y
+        T[0] += 1
+        T[4] += 1
+    return r
+
+
+@njit(cache=True)
+def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
+                          robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range,
+                          observe_sonar, max_episode_steps, pos, budget_steps, budget_episodes, rec):
+    """Tabular Sarsa(λ) on a GridMaze: :func:`avq.agents._td.table_step` at every step, as ``TabularSarsa``
+    does stepping the environment.
+
+    ``T``: rows in use, current row, current action, episode steps, rows added this
+    episode, in-episode flag; ``TF[0]``: episode return. ``q`` and ``e`` must have a
+    row for every position; ``act`` is the active list of :mod:`avq.agents._td`.
+    Returns ``(steps, episodes, status)``. (GridMaze only: ``robot`` must be False.)
+    """
+    q, e, act, row_of, keys, T, TF = (borrowed(q), borrowed(e), borrowed(act), borrowed(row_of), borrowed(keys),
+                                      borrowed(T), borrowed(TF))
+    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
+    steps = 0
+    episodes = 0
+    while True:
+        if T[5] == 0:
+            if steps >= budget_steps or episodes >= budget_episodes:
+                return steps, episodes, DONE
+            if episodes >= rec.shape[0]:
+                return steps, episodes, RECORDS_FULL
+            maze_start(env_rng, pos, False, walls, gx, gy, starts, fixed, radius)
+            clear_traces(e, act)
+            T[3] = 0
+            T[4] = 0
+            TF[0] = 0.0
+            T[1] = _table_row(row_of, keys, T, int(pos[0]), int(pos[1]))
+            T[2] = epsilon_greedy(rng, q, T[1], epsilon)
+            T[5] = 1
+        if steps >= budget_steps:
+            return steps, episodes, DONE
+        r, terminated, _ = maze_move(env_rng, pos, T[2], False, walls, gx, gy, move, radius, slip)
+        truncated = pos[2] >= max_episode_steps
+        steps += 1
+        T[3] += 1
+        TF[0] += r
+        s2 = _table_row(row_of, keys, T, int(pos[0]), int(pos[1]))
+        T[2] = table_step(rng, q, e, act, T[1], T[2], r, s2, terminated, epsilon, alpha, gamma, lam, replacing)
+        T[1] = s2
+        if terminated or truncated:
+            T[5] = 0
+            rec[episodes, 0] = T[3]
+            rec[episodes, 1] = TF[0]
+            rec[episodes, 2] = T[0]
+            rec[episodes, 3] = T[4]
+            rec[episodes, 4] = 0
+            rec[episodes, 5] = 0
+            rec[episodes, 6] = T[3]
+            episodes += 1
