@@ -428,7 +428,7 @@ def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
 
 
 def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
-    from avq._kernels import mutual_nearest_pairs_kernel
+    from avq.quantizer import mutual_nearest_pairs_kernel
     from avq.agents.avq_sarsa import kernels as core
 
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
@@ -449,14 +449,14 @@ def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
 
 
 def test_merge_pairs_nearest_pairs_closest_first_mutual_or_not():
-    from avq._kernels import nearest_pairs_kernel
+    from avq.quantizer import nearest_pairs_kernel
 
     # 0 (0,0) and 1 (1,0) are 1 apart and pair first. 2 (2.5,0)'s nearest is 1 (1.5), already taken;
     # 3 (4.5,0)'s nearest is 2 (2.0), free: pair (2, 3), although 2's own nearest is 1.
     pts = np.array([[0.0, 0.0], [1.0, 0.0], [2.5, 0.0], [4.5, 0.0]])
     assert nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1], [2, 3]]
     # The paper's rule pairs only (0, 1): 2's nearest (1) is not mutual.
-    from avq._kernels import mutual_nearest_pairs_kernel
+    from avq.quantizer import mutual_nearest_pairs_kernel
     assert mutual_nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1]]
     with pytest.raises(ValueError, match="merge_pairs must be one of"):
         agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], merge_pairs="closest")

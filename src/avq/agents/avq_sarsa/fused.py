@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from avq._kernels import borrowed, nearest_index
+from avq._numba import borrowed
+from avq.quantizer import nearest_index
 from avq.agents._maze_loop import DONE, NEED_CAPACITY, RECORDS_FULL, maze_move, maze_observation, maze_start
 from avq.agents.avq_sarsa.kernels import (ACTION, GEOM, IN_EPISODE, SIZE, begin_episode, decide, end_episode, learn,
                                           observe, observe_at)

@@ -34,8 +34,9 @@ import math
 import numpy as np
 from numba import njit
 
-from avq._kernels import (borrowed, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index,
-                          nearest_pairs_kernel, scaled_distance)
+from avq._numba import borrowed
+from avq.quantizer import (append_vector, compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_index,
+                           nearest_pairs_kernel, scaled_distance)
 from avq._random import DRAWS_PER_DECISION
 from avq.agents._maze_loop import N_R, R_APPENDS, R_CELLS, R_DECISIONS, R_MERGES, R_REFUSED, R_RETURN, R_STEPS  # noqa: F401
 from avq.agents._td import clear_traces, epsilon_greedy, greedy_ties, sarsa_lambda, sarsa_td_error
@@ -77,10 +78,8 @@ def _may_append(dist_nearest: float, P, IP, S) -> bool:
 @njit(cache=True, inline="always")
 def _append(V, Q, E, born, S, x, parent: int) -> int:
     """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
-    c = S[SIZE]
+    c = append_vector(V, S[SIZE], x)
     # Element loops, not slices: slice assignment drags shape-error formatting into the hot path.
-    for d in range(x.shape[0]):
-        V[c, d] = x[d]
     for b in range(Q.shape[1]):
         Q[c, b] = Q[parent, b]
         E[c, b] = 0.0
@@ -440,7 +439,7 @@ def packed_sizes(cap: int, n: int, m: int) -> tuple[int, int]:
 @njit(cache=True, inline="always")
 def unpack(fb, ib):
     """The views ``(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr)`` of the packed buffers
-    (borrowed, see :func:`avq._kernels.borrowed`: they must not outlive the call that made them)."""
+    (borrowed, see :func:`avq._numba.borrowed`: they must not outlive the call that made them)."""
     fb, ib = borrowed(fb), borrowed(ib)
     cap, n, m = ib[0], ib[1], ib[2]
     o = 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from avq._kernels import borrowed
+from avq._numba import borrowed
 from avq.agents._maze_loop import DONE, RECORDS_FULL, maze_move, maze_start
 from avq.agents._td import clear_traces, epsilon_greedy, table_step
 

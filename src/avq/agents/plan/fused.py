@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from avq._kernels import borrowed, nearest_index
+from avq._numba import borrowed
+from avq.quantizer import nearest_index
 from avq.agents._maze_loop import DONE, NEED_CAPACITY, RECORDS_FULL, maze_move, maze_observation, maze_start
 from avq.agents._td import epsilon_greedy
 from avq.agents.plan import kernels as plan_core

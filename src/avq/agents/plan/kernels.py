@@ -46,7 +46,7 @@ import math
 import numpy as np
 from numba import njit
 
-from avq._kernels import nearest_index, scaled_distance
+from avq.quantizer import append_vector, nearest_index, scaled_distance
 from avq.agents.plan import model as _model
 from avq.agents.plan.model import FIRST, push, record, settled
 from avq.agents._td import epsilon_greedy
@@ -88,7 +88,7 @@ def distance_between(x, y, inv_scale) -> float:
 @njit(cache=True, inline="always")
 def _row_distance2(X, t: int, off: int, V, i: int, inv_scale) -> float:
     """Squared scaled distance from the stored observation ``X[t, off:off + n]`` to vector ``i`` (the
-    arithmetic of :func:`avq._kernels.nearest_index`)."""
+    arithmetic of :func:`avq.quantizer.nearest_index`)."""
     s = 0.0
     for d in range(V.shape[1]):
         z = (V[i, d] - X[t, off + d]) * inv_scale[d]
@@ -100,7 +100,7 @@ def _row_distance2(X, t: int, off: int, V, i: int, inv_scale) -> float:
 def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_scale) -> int:
     """The cell of the stored observation ``X[t, off:]``, which was in cell ``k``, after vectors ``u`` and
     ``w`` changed (moved or new): among ``k``, ``u``, ``w`` unless it was in one of them or ``u < 0`` (the
-    metric changed: then among all), lowest index on ties as :func:`avq._kernels.nearest_index`."""
+    metric changed: then among all), lowest index on ties as :func:`avq.quantizer.nearest_index`."""
     if k == u or k == w or u < 0:
         best, _ = nearest_index(V, size, X[t, off:off + V.shape[1]], inv_scale)
         return best
@@ -160,9 +160,7 @@ def relocate(V, inv_scale, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, e_to, 
 def _new_cell(V, S, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
               prio, C, MP, x) -> int:
     """Vector ``x`` as a new cell and a new state of the model (every action unknown)."""
-    c = S[SIZE]
-    for d in range(x.shape[0]):
-        V[c, d] = x[d]
+    c = append_vector(V, S[SIZE], x)
     S[SIZE] = c + 1
     S[APPENDS] += 1
     S[GEOM] += 1
