@@ -42,7 +42,9 @@ from avq.agents._maze_loop import N_R, R_APPENDS, R_CELLS, R_DECISIONS, R_MERGES
 from avq.agents._td import clear_traces, epsilon_greedy, greedy_ties, sarsa_lambda, sarsa_td_error
 from avq.rules import APPEND as APPEND_OUTCOME
 from avq.rules import CHI as CHI_OUTCOME
-from avq.rules import collision_rule, may_append, mean_square_difference, merge_profiles, similar_profiles
+from avq.rules import (closes_cycle, collision_rule, collision_split, decision_goes_on, may_append,
+                       mean_square_difference, merge_profiles, old_enough, repeat_limit_reached, reward_jump,
+                       same_greedy_action, similar_profiles, stale_cell, value_jump)
 
 # P: float parameters
 ALPHA, LAM, GAMMA, EPS, DMIN, RHO, CHI, QINIT, VTRIG, RTRIG, EPS0, EPS_DECAY, EPS_MIN, ADAPT = range(14)
@@ -163,7 +165,7 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
     if P[RTRIG] > 0.0:
-        jump = S[EP_STEPS] > 1 and abs(r - F[PREV_R]) >= P[RTRIG]
+        jump = reward_jump(r, F[PREV_R], S[EP_STEPS], P[RTRIG])
         F[PREV_R] = r
         if jump and not collision and _may_append(dist_j, P, IP, S):
             j = _append(V, Q, E, born, S, x, i)
@@ -174,14 +176,14 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
         S[GEOM] += 1
     # SPEC §2: the decision goes on while the cell stays the same; beyond the paper, for at most max_repeat
     # steps, after which it ends in that same cell and learn() takes it as any other aggregate transition.
-    if j == i and not (collision or done or (IP[MAX_REPEAT] > 0 and S[REPEATS] >= IP[MAX_REPEAT])):
+    if decision_goes_on(j == i, collision, done) and not repeat_limit_reached(S[REPEATS], IP[MAX_REPEAT]):
         return -1
     if collision:
         # SPEC §3, collision rule (avq.rules.collision_rule).
         dist_i = dist_j if j == i else scaled_distance(V, i, x, inv_scale)
         outcome = collision_rule(dist_i, dist_j, P[DMIN])
-        if outcome == CHI_OUTCOME and IP[COLLISION_SPLIT] and dist_i > 0.0 and np.argmax(Q[i]) == a \
-                and Q[i, a] > P[CHI] and S[SIZE] < IP[MAX_CELLS]:
+        if outcome == CHI_OUTCOME and IP[COLLISION_SPLIT] and S[SIZE] < IP[MAX_CELLS] \
+                and collision_split(dist_i, np.argmax(Q[i]) == a, Q[i, a], P[CHI]):
             # Beyond the paper: the cell's greedy action hit a wall here but is still the best one
             # elsewhere in the cell; instead of condemning it for the whole cell, split x off.
             j = _append(V, Q, E, born, S, x, i)
@@ -216,11 +218,11 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
         delta = sarsa_td_error(Q[i, a], F[RET], F[DISC], Q[j, a_next], False)
     sarsa_lambda(Q, E, act, i, a, delta, P[ALPHA], F[DISC] * P[LAM], IP[REPLACING] != 0)
     appended = False
-    if P[VTRIG] > 0.0 and abs(delta) >= P[VTRIG]:
+    if value_jump(delta, P[VTRIG]):
         if _may_append(scaled_distance(V, j, x, inv_scale), P, IP, S):
             j = _append(V, Q, E, born, S, x, j)
             appended = True
-    if IP[CYCLE_SPLIT] and not (done or appended) and greedy and S[PREV_GREEDY] and S[PREV_CELL] == j and j != i:
+    if IP[CYCLE_SPLIT] and not (done or appended) and greedy and S[PREV_GREEDY] and closes_cycle(S[PREV_CELL], i, j):
         # Beyond the paper: two greedy decisions led from cell j to i and back into j, a cycle
         # that the greedy policy would repeat forever: the cell j is wrong for part of it.
         # Split off the square of the return (x, unless it is j's own vector).
@@ -277,10 +279,9 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
         i, j = pairs[k, 0], pairs[k, 1]
         if not similar_profiles(Q[i], Q[j], P[RHO]):  # SPEC §4, criterion 2
             continue
-        if IP[MERGE_AGE] > 0:
-            if S[EPISODES] - born[i, 0] < IP[MERGE_AGE] or S[EPISODES] - born[j, 0] < IP[MERGE_AGE]:
-                continue
-        if IP[MERGE_SAME_ACTION] and np.argmax(Q[i]) != np.argmax(Q[j]):
+        if not old_enough(S[EPISODES], born[i, 0], born[j, 0], IP[MERGE_AGE]):
+            continue
+        if IP[MERGE_SAME_ACTION] and not same_greedy_action(Q[i], Q[j]):
             continue
         keep[k] = True
         n_keep += 1
@@ -293,7 +294,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             best_d = np.inf
             for k in range(pairs.shape[0]):
                 i, j = pairs[k, 0], pairs[k, 1]
-                if keep[k] or np.argmax(Q[i]) != np.argmax(Q[j]):
+                if keep[k] or not same_greedy_action(Q[i], Q[j]):
                     continue
                 d = mean_square_difference(Q[i], Q[j])
                 if d < best_d:
@@ -335,7 +336,7 @@ def prune_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     stale = np.zeros(size, dtype=np.bool_)
     n_stale = 0
     for r in range(size):
-        if now - born[r, 0] >= k and now - born[r, 1] >= k:
+        if stale_cell(now, born[r, 0], born[r, 1], k):
             stale[r] = True
             n_stale += 1
     if n_stale == size:

@@ -50,7 +50,8 @@ from avq.quantizer import append_vector, nearest_index, scaled_distance
 from avq.agents.plan import model as _model
 from avq.agents.plan.model import FIRST, push, record, settled
 from avq.agents._td import epsilon_greedy
-from avq.rules import APPEND, collision_rule
+from avq.rules import (APPEND, closes_cycle, collision_rule, decision_goes_on, outcome_disagrees, split_matters,
+                       stayed_too_long)
 
 # P: float parameters
 GAMMA, EPS, DMIN, SPLIT_THRESHOLD, SLOPE = range(5)
@@ -377,9 +378,9 @@ def goes_on(P, IP, S, F, r: float, j: int, d2: float, collision: bool, done: boo
     F[RET] += F[DISC] * r
     F[DISC] *= P[GAMMA]
     F[EP_RETURN] += r
-    if j != S[CELL] or collision or done:
+    if not decision_goes_on(j == S[CELL], collision, done):
         return False
-    if IP[SPLIT_AFTER] > 0 and S[DEC_STEPS] >= IP[SPLIT_AFTER] and d2 > P[DMIN] * P[DMIN]:
+    if stayed_too_long(S[DEC_STEPS], IP[SPLIT_AFTER], d2, P[DMIN]):
         if S[SIZE] < IP[MAX_CELLS]:
             return False
         if not S[DEC_REFUSED]:
@@ -420,7 +421,7 @@ def end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt
             else:
                 S[REFUSED] += 1
     known = cnt[i, a] >= C[_model.KNOWN]  # (before this transition is recorded)
-    if IP[CYCLE_SPLIT] and not done and j == S[PREV_CELL] and j != i and known and S[PREV_KNOWN]:
+    if IP[CYCLE_SPLIT] and not done and known and S[PREV_KNOWN] and closes_cycle(S[PREV_CELL], i, j):
         # Two decisions the model knew led from cell j to i and straight back into j: a cycle that the
         # greedy policy repeats for ever when the cells' values hold (as AVQSarsa's cycle_split; while
         # exploring, such returns are the way to an untried decision). Give the square of the return a
@@ -449,12 +450,12 @@ def end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt
         remember(IP, S, xs, x, mem_x, mem_i, mem_f, a, i, jm, F[RET], F[DISC])
         _record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, e_xs, mem_x, t, i, a,
                 F[RET], F[DISC], jm, 1)
-        if excess > P[SPLIT_THRESHOLD]:
-            bar = -np.inf  # the value of the next best decision in i: the split must matter to the policy
+        if outcome_disagrees(excess, P[SPLIT_THRESHOLD]):
+            bar = -np.inf  # the value of the next best decision in i
             for b in range(Q.shape[1]):
                 if b != a and Q[i, b] > bar:
                     bar = Q[i, b]
-            if other[n] < bar:
+            if split_matters(other[n], bar):
                 if S[SIZE] < IP[MAX_CELLS]:
                     if split_cell(V, inv_scale, P, S, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next,
                                   e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, i, a, xs,
