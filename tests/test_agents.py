@@ -320,7 +320,7 @@ def test_alpha_schedule_decays_per_episode_and_is_the_step_of_the_updates(tmp_pa
 
 
 def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
-    from avq.agents.registry import AGENTS, DEFAULTS, TASK_DEFAULTS, agent_class, agent_defaults
+    from avq.agents.registry import AGENTS, DEFAULTS, agent_class, agent_defaults
 
     maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
     assert maze.get_params() == {**avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
@@ -336,10 +336,10 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert isinstance(general, avq.PlanningAVQ) and agent_class("avq", "MountainCar-v0") is avq.PlanningAVQ
     assert {k: general.get_params()[k] for k in AGENTS["avq"][1]} == AGENTS["avq"][1]
     assert general.split_after == 5 and general.v_opt == "auto"
-    assert AGENTS["avq"][1] is DEFAULTS["avq-plan"]["*"]  # (one set of general defaults for the planning agent)
+    assert AGENTS["avq"][1] == DEFAULTS["avq-plan"]["*"]  # (one set of general defaults for the planning agent)
     # Explicit overrides win over the task's defaults; the task's defaults replace all of the name's.
     assert avq.make_agent("avq", "avq/GridMaze-v0", cycle_split=False, d_min=2.0).get_params()["d_min"] == 2.0
-    assert agent_defaults("avq", "avq/GridMaze-v0") == TASK_DEFAULTS["avq"]["avq/GridMaze-v0"]
+    assert agent_defaults("avq", "avq/GridMaze-v0") == DEFAULTS["avq"]["avq/GridMaze-v0"]
     assert "merge_age" not in agent_defaults("avq", "avq/GridMaze-v0")
     assert agent_defaults("avq", "MountainCar-v0") == AGENTS["avq"][1]
     # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism, and the pole's
@@ -360,18 +360,18 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
 
 
 def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_values_in_force():
-    from avq.agents.registry import AGENTS, DEFAULTS, TASK_DEFAULTS, defaults_key
+    from avq.agents.registry import AGENTS, DEFAULTS, defaults_key
 
     maze = make_agent("avq", "avq/GridMaze-v0", seed=0)
     used = maze.defaults_used
     assert (used.name, used.env_id, used.key, used.explicit) == ("avq", "avq/GridMaze-v0", "avq/GridMaze-v0", {})
     assert str(used) == ("agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
-                         "(avq.agents.registry.DEFAULTS['avq']['avq/GridMaze-v0']); explicit: none")
+                         "(avq/agents/defaults/avq.yaml, entry 'avq/GridMaze-v0'); explicit: none")
     entry = DEFAULTS["avq"]["avq/GridMaze-v0"]
     assert {k: maze.get_params()[k] for k in entry} == entry
     general = make_agent("avq", "MountainCar-v0", d_min=0.2)
     assert general.defaults_used.key == "*" and general.defaults_used.explicit == {"d_min": 0.2}
-    assert str(general.defaults_used).endswith("DEFAULTS['avq']['*']); explicit: d_min=0.2")
+    assert str(general.defaults_used).endswith("(avq/agents/defaults/avq.yaml, entry '*'); explicit: d_min=0.2")
     assert general.get_params()["d_min"] == 0.2 and general.get_params()["split_after"] == 5
     # scale="auto" is kept as given; the scale in force (here the observation bounds') is scale_.
     space = general.env.observation_space
@@ -386,11 +386,9 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     assert DEFAULTS["avq"]["CartPole-v0"] == DEFAULTS["avq-plan"]["CartPole-v0"] == DEFAULTS["avq"]["CartPole-v1"]
     cartpole = make_agent("avq", gym.make("CartPole-v0"), seed=0)
     assert cartpole.get_params()["epsilon"] == 0.01 and cartpole.get_params()["scale_factor"] == [1.0, 1.0, 0.5, 0.5]
-    # One table: AGENTS and TASK_DEFAULTS hold DEFAULTS' own entries.
+    # One table: AGENTS holds DEFAULTS' own "*" entries.
     for name, table in DEFAULTS.items():
         assert AGENTS[name][1] is table["*"]
-    assert TASK_DEFAULTS == {name: {k: v for k, v in DEFAULTS[name].items() if k != "*"}
-                             for name in ("avq", "avq-plan")}
 
 
 def test_validators_name_the_parameter_and_the_value():
@@ -410,3 +408,30 @@ def test_validators_name_the_parameter_and_the_value():
     ):
         with pytest.raises(ValueError, match=message):
             call()
+
+
+def test_the_defaults_files_resolve_bases_and_carry_a_reason_and_a_link(tmp_path):
+    import yaml
+    from importlib import resources
+
+    from avq.agents.registry import DEFAULTS, ENTRIES
+
+    folder = resources.files("avq.agents").joinpath("defaults")
+    names = sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+    assert names == sorted(DEFAULTS)  # one file per agent, and every file read
+    for name in names:
+        raw = yaml.safe_load(folder.joinpath(f"{name}.yaml").read_text(encoding="utf-8"))
+        for key, entry in raw["entries"].items():
+            resolved = ENTRIES[name][key]
+            assert resolved.reason.strip() and "#" in resolved.results and resolved.results.endswith(
+                resolved.results.split("#")[1])
+            # base: the base entry's params, then the entry's own on top.
+            if "base" in entry:
+                base = DEFAULTS[entry["base"].get("agent", name)][entry["base"]["entry"]]
+                assert resolved.params == {**base, **(entry.get("params") or {})}
+            else:
+                assert resolved.params == entry["params"]
+    # Written out: CartPole-v0 starts from CartPole-v1's entry, which adds two values to avq-plan's "*".
+    assert DEFAULTS["avq-plan"]["CartPole-v0"] == {**DEFAULTS["avq-plan"]["*"], "epsilon": 0.01,
+                                                  "scale_factor": [1.0, 1.0, 0.5, 0.5]}
+    assert ENTRIES["avq"]["avq/GridMaze-v0"].cls is AVQSarsa and ENTRIES["avq"]["*"].cls is avq.PlanningAVQ

@@ -52,11 +52,11 @@ def test_train_says_which_defaults_it_took(tmp_path, capsys):
                  "--no-progress"]) == 0
     assert capsys.readouterr().out.splitlines()[0] == (
         "agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
-        "(avq.agents.registry.DEFAULTS['avq']['avq/GridMaze-v0']); explicit: none")
+        "(avq/agents/defaults/avq.yaml, entry 'avq/GridMaze-v0'); explicit: none")
     assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "d_min=0.2", "--out",
                  str(tmp_path / "car"), "--no-progress"]) == 0
     assert capsys.readouterr().out.splitlines()[0] == (
-        "agent avq on MountainCar-v0: the general defaults of avq (avq.agents.registry.DEFAULTS['avq']['*']); "
+        "agent avq on MountainCar-v0: the general defaults of avq (avq/agents/defaults/avq.yaml, entry '*'); "
         "explicit: d_min=0.2")
     # avq's class depends on the task: a parameter of the maze agent is refused elsewhere, naming the class.
     assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "alpha=0.2", "--out",

@@ -230,15 +230,15 @@ _ANIMATED_ENVS = ("avq/GridMaze-v0", "avq/RobotMaze-v0")
 
 def _partition_recorder(env_id: str, agent: str, env_kwargs: dict):
     """The ``learn`` callback of ``--animate``, after checking that there is a partition to draw."""
-    from avq.agents.registry import CLASSES, agent_class
+    from avq.agents.registry import AGENTS, agent_class
     from avq.figure_data import PartitionRecorder, has_partition
     from avq.runs import make_env
 
     if env_id not in _ANIMATED_ENVS:
         raise UsageError(f"--animate draws the partition of a maze ({' or '.join(_ANIMATED_ENVS)}), not of {env_id}; "
                          "drop --animate or choose one of those")
-    if agent in CLASSES and not has_partition(agent_class(agent, env_id)):
-        with_cells = ", ".join(name for name in CLASSES if has_partition(agent_class(name, env_id)))
+    if agent in AGENTS and not has_partition(agent_class(agent, env_id)):
+        with_cells = ", ".join(name for name in AGENTS if has_partition(agent_class(name, env_id)))
         raise UsageError(f"--animate draws an agent's cells, and {agent} has none; drop --animate or choose an "
                          f"agent with cells: {with_cells}")
     return PartitionRecorder(make_env(env_id, env_kwargs))

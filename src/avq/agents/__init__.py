@@ -11,7 +11,7 @@ from avq.agents.avq_sarsa.agent import AVQSarsa
 from avq.agents.base import BaseAgent, NotFiniteError
 from avq.agents.baselines.grid import GridSarsa
 from avq.agents.registry import AGENTS, make_agent
-from avq.agents.save_util import load
+from avq.agents.base import load
 from avq.agents.plan.sweeping import PrioritizedSweeping
 from avq.agents.baselines.tabular import TabularSarsa
 from avq.agents.baselines.tiles import TileSarsa

@@ -72,10 +72,6 @@ class BaseAgent:
     #: What ``n_cells`` counts, in messages: cells (states), or actions for the agents that quantize actions.
     size_unit: ClassVar[str] = "cells"
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        save_util.AGENT_CLASSES[cls.__name__] = cls  # so that a model file names its class
-
     def __init__(self, env: gym.Env | str, seed: int | None) -> None:
         self.env = as_env(env)
         self.seed = check_optional(check_int, "seed", seed, 0)
@@ -442,11 +438,9 @@ class BaseAgent:
 
     @classmethod
     def load(cls, path: str | os.PathLike, env: gym.Env | str | None = None) -> "BaseAgent":
-        """Load an agent saved by :meth:`save`; see :func:`avq.load`."""
-        agent = load(path, env=env)
-        if not isinstance(agent, cls):
-            raise ValueError(f"{path}: holds a {type(agent).__name__}, not a {cls.__name__}")
-        return agent
+        """Load an agent saved by :meth:`save`: one of this class or of its subclasses
+        (``avq.load``, which is ``BaseAgent.load``, loads any agent)."""
+        return save_util.load(path, env=env, classes=_subclasses(cls))
 
 
 @dataclass
@@ -480,6 +474,14 @@ class _LearnCall:
         return elapsed
 
 
+def _subclasses(cls: type[BaseAgent]) -> dict[str, type[BaseAgent]]:
+    """``cls`` and every class derived from it, by name: the classes a model file may name."""
+    found = {cls.__name__: cls}
+    for sub in cls.__subclasses__():
+        found.update(_subclasses(sub))
+    return found
+
+
 def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
-    """Load any avq agent saved with ``agent.save(path)``: :func:`avq.agents.save_util.load`."""
-    return save_util.load(path, env=env)
+    """Load any avq agent saved with ``agent.save(path)`` (:meth:`BaseAgent.load`)."""
+    return BaseAgent.load(path, env=env)

@@ -9,9 +9,8 @@ A model file is a zip of two members, written atomically and never pickled:
 - ``arrays.npz``: the learned arrays and the episode history, numbers only.
 
 Kept apart from the agents (as Stable-Baselines3 keeps ``common/save_util.py``). It
-imports no agent: the classes it can build are in a table, ``AGENT_CLASSES``, which every
-subclass of `avq.agents.BaseAgent` joins when it is defined; `avq.agents.BaseAgent.save` and
-`avq.agents.BaseAgent.load` call it.
+imports no agent: `avq.agents.BaseAgent.load` hands it the classes a file may name (itself and
+its subclasses); `avq.agents.BaseAgent.save` and `avq.load` call it.
 """
 
 from __future__ import annotations
@@ -33,9 +32,6 @@ from avq.envs import as_env
 
 if TYPE_CHECKING:
     from avq.agents.base import BaseAgent
-
-#: Every agent class by name (filled by ``BaseAgent.__init_subclass__``): a model file names its class.
-AGENT_CLASSES: dict[str, type["BaseAgent"]] = {}
 
 __all__ = ["FORMAT_VERSION", "save", "load", "env_signature", "check_env_fits"]
 
@@ -190,13 +186,15 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     return meta, arrays
 
 
-def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
-    """Load any avq agent saved with ``agent.save(path)``.
+def load(path: str | os.PathLike, env: gym.Env | str | None = None, *,
+         classes: dict[str, type[BaseAgent]]) -> BaseAgent:
+    """Load an avq agent saved with ``agent.save(path)`` (``avq.load`` and ``Agent.load`` call this).
 
     Args:
         path: The saved file (``.zip`` is tried when the path has no suffix).
         env: The environment to attach (or a registered id). Without one, the environment is
             made from the id and ``gymnasium.make`` arguments stored in the file.
+        classes: The classes the file may name, by name (the file names its class).
 
     Returns:
         The agent as it was saved, with its generators: learning on continues as the
@@ -211,9 +209,11 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent
     if not path.exists() and path.suffix == "" and path.with_suffix(".zip").exists():
         path = path.with_suffix(".zip")
     meta, arrays = _read_model_file(path)
-    cls = AGENT_CLASSES.get(meta.get("class", ""))
+    cls = classes.get(meta.get("class", ""))
     if cls is None:
-        raise ValueError(f"{path}: unknown agent class {meta.get('class')!r}")
+        want = next(iter(classes))  # (the class asked for; its subclasses follow)
+        raise ValueError(f"{path}: holds a {meta.get('class')}, not a {want}" if want != "BaseAgent"
+                         else f"{path}: unknown agent class {meta.get('class')!r}")
     if env is None:
         if not meta.get("env_id"):
             raise ValueError(f"{path}: the model records no environment id; pass env= to load it")

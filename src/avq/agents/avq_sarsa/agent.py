@@ -136,7 +136,7 @@ class AVQSarsa(BaseAgent):
     class scales by the observation bounds (so ``d_min = 0.05`` is 5% of each
     range), while ``avq-paper`` uses the paper's plain Euclidean distance
     (``scale=1``, ``d_min=1`` grid unit). The named agents' defaults, those documented
-    and measured, are in one table, :data:`avq.agents.registry.DEFAULTS`.
+    and measured, are in the data files ``avq/agents/defaults/*.yaml``.
 
     Attributes:
         scale_: ``(n,)`` the metric's scale in force (``scale`` resolved, and estimated where

@@ -84,7 +84,7 @@ class PlanningAVQ(BaseAgent):
         seed: Seed of every random choice the agent makes and of the environment's first reset.
 
     The signature's defaults are those of ``avq`` (and ``avq-plan``) on tasks without collisions; on the mazes
-    ``make_agent`` gives the maze settings (``avq.agents.registry.DEFAULTS["avq-plan"]``).
+    ``make_agent`` gives the maze settings (``avq/agents/defaults/avq-plan.yaml``).
 
     Attributes:
         codebook_: ``(p, n)`` codebook vectors.

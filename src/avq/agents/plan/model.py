@@ -43,7 +43,10 @@ from numba import njit
 
 from avq.agents._td import epsilon_greedy
 
-__all__ = ["Model", "ModelArrays"]
+__all__ = ["Model", "ModelArrays", "PLANNING_PARAMS"]
+
+#: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
+PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
 
 # C: int counters and parameters
 N_STATES, N_EDGES, N_PREDS, HEAP_N, BACKUPS, KNOWN = range(6)
