@@ -8,7 +8,7 @@ import numpy as np
 
 import avq
 from avq._io import ProgressLog
-from avq.agents.base import PROGRESS_COLUMNS
+from avq.agents.callbacks import PROGRESS_COLUMNS
 from avq.cli import main
 
 from conftest import ScriptedEnv

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.base import PROGRESS_COLUMNS
+from avq.agents.callbacks import PROGRESS_COLUMNS
 from avq.runs import train
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")

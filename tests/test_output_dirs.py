@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 import avq
-from avq.agents.base import PROGRESS_COLUMNS
+from avq.agents.callbacks import PROGRESS_COLUMNS
 from avq.cli import main
 
 posix_only = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")

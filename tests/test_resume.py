@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import avq
+from avq.agents.callbacks import CheckpointCallback
 from avq._io import ProgressLog
 
 CASES = [  # (agent, env id, episodes before the stop, episodes after, extra parameters)
@@ -44,7 +45,7 @@ def test_resume_in_a_new_process_is_bit_for_bit(tmp_path, name, env_id, first, t
     straight.save(tmp_path / "straight.zip")
 
     stopped = avq.make_agent(name, gym.make(env_id), seed=3, **extra)
-    stopped.learn(total_episodes=first, checkpoint_every=first, checkpoint_dir=tmp_path / "ckpt")
+    stopped.learn(total_episodes=first, callback=CheckpointCallback(first, tmp_path / "ckpt"))
     script = textwrap.dedent(f"""
         import gymnasium as gym, avq
         agent = avq.load({str(tmp_path / "ckpt" / "checkpoint.zip")!r}, env=gym.make({env_id!r}))
@@ -64,8 +65,8 @@ def test_resume_in_a_new_process_is_bit_for_bit(tmp_path, name, env_id, first, t
 def test_checkpoints_land_every_n_episodes_with_the_progress_rows(tmp_path):
     agent = avq.make_agent("avq-paper", gym.make("avq/GridMaze-v0"), seed=0)
     seen = []
-    agent.learn(total_episodes=25, checkpoint_every=10, checkpoint_dir=tmp_path,
-                callback=lambda a, r: seen.append((r["episode"], (tmp_path / "checkpoint.zip").exists())))
+    agent.learn(total_episodes=25, callback=[lambda a, r: seen.append((r["episode"], (tmp_path / "checkpoint.zip").exists())),
+                                             CheckpointCallback(10, tmp_path)])
     assert avq.load(tmp_path / "checkpoint.zip").num_episodes == 20
     rows = (tmp_path / "progress.csv").read_text().splitlines()
     assert rows[0] == "episode,steps,return,n_cells,appends,merges,refused,decisions,wall_s"
@@ -77,13 +78,23 @@ def test_checkpoints_land_every_n_episodes_with_the_progress_rows(tmp_path):
 
 def test_checkpoint_arguments_are_checked(tmp_path):
     agent = avq.make_agent("tabular", gym.make("avq/GridMaze-v0"), seed=0)
-    with pytest.raises(ValueError, match="together"):
-        agent.learn(total_episodes=1, checkpoint_every=5)
-    with pytest.raises(ValueError, match="checkpoint_every"):
-        agent.learn(total_episodes=1, checkpoint_every=0, checkpoint_dir=tmp_path)
+    with pytest.raises(ValueError, match="checkpoint every"):
+        CheckpointCallback(0, tmp_path)
     (tmp_path / "f").write_text("x")
     with pytest.raises(ValueError, match="is a file"):
-        agent.learn(total_episodes=1, checkpoint_every=1, checkpoint_dir=tmp_path / "f")
+        CheckpointCallback(1, tmp_path / "f")
+    with pytest.raises(TypeError, match="callback must be a BaseCallback or callable"):
+        agent.learn(total_episodes=1, callback=[CheckpointCallback(1, tmp_path), "oops"])
+
+
+def test_a_checkpoint_in_the_fused_loop_lands_where_the_python_path_puts_it(tmp_path):
+    # The compiled loop stops at each multiple of `every` for the callback: the checkpoints of both paths hold the
+    # same agent, episode for episode (fused=False steps the maze from Python).
+    for fused in (True, False):
+        agent = avq.make_agent("avq-paper", gym.make("avq/GridMaze-v0"), seed=5, fused=fused)
+        agent.learn(total_episodes=17, callback=CheckpointCallback(8, tmp_path / str(fused)))
+    a, b = (avq.load(tmp_path / str(f) / "checkpoint.zip") for f in (True, False))
+    assert a.num_episodes == b.num_episodes == 16 and np.array_equal(a.q_, b.q_) and a.num_timesteps == b.num_timesteps
 
 
 def _history(n):

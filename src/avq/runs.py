@@ -13,7 +13,8 @@ import numpy as np
 
 from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
 from avq._validate import check_int
-from avq.agents.base import PROGRESS_COLUMNS, Callback, NotFiniteError
+from avq.agents.base import Callback, NotFiniteError
+from avq.agents.callbacks import PROGRESS_COLUMNS, CheckpointCallback
 from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.evaluation import evaluate_maze
 
@@ -168,7 +169,8 @@ def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: boo
     else:
         left = {"total_timesteps": max(0, int(config["timesteps"]) - model.num_timesteps)}
     try:
-        model.learn(**left, progress_bar=progress, checkpoint_every=every, checkpoint_dir=out, callback=callback)
+        checkpoints = CheckpointCallback(every, out)
+        model.learn(**left, progress_bar=progress, callback=[checkpoints] if callback is None else [callback, checkpoints])
     except NotFiniteError as exc:  # (learn checkpoints at every multiple of `every`, and writes nothing else)
         done = model.num_episodes - model.num_episodes % every
         kept = (f"its checkpoint after episode {done} and progress.csv up to it are intact" if done else

@@ -9,6 +9,7 @@ from avq.agents.actions.agent import ActionCodebookSarsa
 from avq.agents.plan.agent import PlanningAVQ
 from avq.agents.avq_sarsa.agent import AVQSarsa
 from avq.agents.base import BaseAgent, NotFiniteError
+from avq.agents.callbacks import BaseCallback, CallbackList, CheckpointCallback, ProgressBarCallback
 from avq.agents.baselines.grid import GridSarsa
 from avq.agents.registry import AGENTS, make_agent
 from avq.agents.base import load
@@ -17,4 +18,5 @@ from avq.agents.baselines.tabular import TabularSarsa
 from avq.agents.baselines.tiles import TileSarsa
 
 __all__ = ["AVQSarsa", "PlanningAVQ", "TabularSarsa", "PrioritizedSweeping", "GridSarsa", "TileSarsa", "ActionCodebookSarsa",
-           "BaseAgent", "NotFiniteError", "AGENTS", "make_agent", "load", "registry", "save_util"]
+           "BaseAgent", "NotFiniteError", "AGENTS", "make_agent", "load", "registry", "save_util", "BaseCallback",
+           "CallbackList", "CheckpointCallback", "ProgressBarCallback"]

@@ -16,18 +16,17 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Iterable
+from typing import Any, Callable, ClassVar, Iterable, Sequence
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._io import ProgressLog
 from avq._random import RawStream
 from avq.agents import save_util
+from avq.agents.callbacks import NEVER, BaseCallback, CallbackList, as_callback
 from avq.envs import as_env
-from avq.agents._td import decide
-from avq.agents._history import HISTORY_FIELDS, EpisodeHistory
+from avq.agents._history import EpisodeHistory
 from avq._validate import check_bool, check_int, check_optional
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "NotFiniteError", "load"]
@@ -40,8 +39,6 @@ Callback = Callable[["BaseAgent", EpisodeRecord], "bool | None"]
 
 #: The fields every agent records per episode (``episode`` and ``wall_s`` are added by ``learn``).
 RECORD_FIELDS = ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions")
-#: The columns of ``progress.csv``: every field of the per-episode record.
-PROGRESS_COLUMNS = HISTORY_FIELDS
 
 
 class NotFiniteError(ValueError):
@@ -143,37 +140,6 @@ class BaseAgent:
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
-    def _sarsa_steps(self, max_steps: int, s: Any, a: int, update: Callable[[Any, int, float, Any, bool], tuple],
-                     env_actions: np.ndarray | None = None) -> tuple[Any, int, int, bool]:
-        """The primitive steps of an agent that decides at every step (``tabular``, ``grid``, the tile coders).
-
-        Steps the environment with action ``a`` (sent as ``env_actions[a]`` if given) at most
-        ``max_steps`` times, refusing a reward or observation that is not finite, and adds the
-        rewards to ``_ep_return``; ``update(s, a, r, obs, terminated)`` learns the step and returns the
-        next ``(s, a)``. Returns ``(s, a, steps, episode ended)``; ``_ep_steps`` counts the steps.
-        """
-        env = self.env
-        n = 0
-        ended = False
-        while n < max_steps:
-            obs, r, terminated, truncated, _ = env.step(a if env_actions is None else env_actions[a])
-            n += 1
-            self._check_finite(obs, r, self._ep_steps + n)
-            r = float(r)
-            self._ep_return += r
-            s, a = update(s, a, r, obs, bool(terminated))
-            if terminated or truncated:
-                ended = True
-                break
-        self._ep_steps += n
-        return s, a, n, ended
-
-    def _decide(self, values: np.ndarray) -> int:
-        """ε-greedy over one profile of action values (:func:`avq.agents._td.epsilon_greedy`), drawn
-        from the agent's stream."""
-        self._draws.reserve()
-        return int(decide(self._draws.src, values.reshape(1, -1), 0, self.epsilon))
-
     def _check_finite(self, obs: Any, r: Any, step: int) -> None:
         """Refuse an observation or reward that is NaN or infinite, naming the step (0: the reset)."""
         if not (math.isfinite(r) and np.isfinite(obs).all()):
@@ -190,10 +156,8 @@ class BaseAgent:
         self,
         total_episodes: int | None = None,
         total_timesteps: int | None = None,
-        callback: Callback | None = None,
+        callback: BaseCallback | Callback | Sequence[BaseCallback | Callback] | None = None,
         progress_bar: bool = False,
-        checkpoint_every: int | None = None,
-        checkpoint_dir: str | os.PathLike | None = None,
     ) -> "BaseAgent":
         """Learn for a number of episodes or of primitive environment steps.
 
@@ -204,16 +168,12 @@ class BaseAgent:
         Args:
             total_episodes: Number of episodes to finish in this call.
             total_timesteps: Number of primitive environment steps to take in this call.
-            callback: ``callback(agent, record)`` after every episode; ``False`` stops.
+            callback: A :class:`~avq.agents.callbacks.BaseCallback` (for instance a
+                :class:`~avq.agents.callbacks.CheckpointCallback`), a function
+                ``callback(agent, record)`` called after every episode, or a list of them;
+                one that returns ``False`` stops ``learn``.
             progress_bar: Show a tqdm progress bar of the agent's episodes (or steps): it starts
                 at those already learned and ends where this call does, and stays on screen.
-            checkpoint_every: Every this many episodes (counted from the agent's
-                first episode), save the agent to ``checkpoint_dir/checkpoint.zip``
-                and bring ``checkpoint_dir/progress.csv`` (one row per episode) up
-                to date, both written so that a crash leaves a complete file.
-                Loading the checkpoint (:func:`avq.load`) and learning on gives
-                bit for bit what learning on without the stop would have given.
-            checkpoint_dir: Where checkpoints go; required with ``checkpoint_every``.
 
         Returns:
             self
@@ -224,30 +184,12 @@ class BaseAgent:
             check_int("total_episodes", total_episodes, 0)
         if total_timesteps is not None:
             check_int("total_timesteps", total_timesteps, 0)
-        if callback is not None and not callable(callback):
-            raise TypeError("callback must be callable as callback(agent, record)")
-        if (checkpoint_every is None) != (checkpoint_dir is None):
-            raise ValueError("give checkpoint_every and checkpoint_dir together")
-        every = None if checkpoint_every is None else check_int("checkpoint_every", checkpoint_every, 1)
-        checkpoint = log = None
-        if checkpoint_dir is not None:
-            checkpoint = Path(checkpoint_dir)
-            if checkpoint.exists() and not checkpoint.is_dir():
-                raise ValueError(f"checkpoint_dir {checkpoint} is a file; give a directory")
-            log = ProgressLog(checkpoint / "progress.csv", PROGRESS_COLUMNS)
+        callbacks = as_callback(callback, progress_bar=bool(progress_bar))
         if not self._is_setup:
             self._setup()
             self._is_setup = True
-        bar = None
-        if progress_bar:
-            from tqdm.auto import tqdm
-
-            done = self.num_episodes if total_episodes is not None else self.num_timesteps
-            total = total_episodes if total_episodes is not None else total_timesteps
-            unit = "episode" if total_episodes is not None else "step"
-            bar = tqdm(total=done + total, initial=done, unit=unit, desc=type(self).__name__)
-        call = _LearnCall(total_timesteps, total_episodes, callback, bar, every, checkpoint, log,
-                          time.perf_counter())
+        call = _LearnCall(total_timesteps, total_episodes, callbacks, time.perf_counter())
+        callbacks.on_learn_start(self, total_episodes, total_timesteps)
         fused = self._fused_runner()
         try:
             while call.budget_left():
@@ -259,26 +201,26 @@ class BaseAgent:
                     break
         finally:
             self._wall_s += call.lap()
-            if bar is not None:
-                bar.close()
-        if log is not None:
-            log.sync(self.history_)  # the episodes after the last checkpoint too (a resume drops them again)
+            callbacks.on_learn_end(self)
         return self
+
+    @property
+    def in_episode(self) -> bool:
+        """Whether ``learn`` stopped inside an episode (the next call goes on with it)."""
+        return self._in_episode
 
     def _learn_fused_chunk(self, fused: Callable[[int, int, int], tuple[int, np.ndarray, bool]],
                            call: "_LearnCall") -> bool:
-        """Many steps and episodes in one compiled call (see AVQSarsa's fused loops); True: the callback stops.
+        """Many steps and episodes in one compiled call (see AVQSarsa's fused loops); True: a callback stops.
 
-        The chunk ends at the budget, at the next checkpoint, and after every episode
-        when there is a callback (64 episodes with a progress bar).
+        The chunk ends at the budget and where a callback must see an episode.
         """
-        chunk = 1 if call.callback is not None else (64 if call.bar is not None else 1 << 16)
-        budget = call.episodes_left if call.episodes_left is not None else 1 << 62
-        if call.every is not None:  # stop at the next checkpoint
-            budget = min(budget, call.every - self.num_episodes % call.every)
-        n, rows, self._in_episode = fused(call.steps_left if call.steps_left is not None else 1 << 62, budget, chunk)
+        budget = min(call.episodes_left if call.episodes_left is not None else NEVER,
+                     call.callbacks.episodes_to_next_call(self))
+        n, rows, self._in_episode = fused(call.steps_left if call.steps_left is not None else NEVER, budget,
+                                          min(budget, 1 << 16))
         self.num_timesteps += n
-        call.count_steps(n)
+        call.count_steps(self, n)
         elapsed = call.lap()
         # Wall time shared out over the chunk's episodes by their steps.
         wall = self._wall_s + elapsed * np.cumsum(rows[:, 0]) / max(n, 1)
@@ -290,15 +232,15 @@ class BaseAgent:
 
     def _learn_python_step(self, call: "_LearnCall") -> bool:
         """Step the environment from Python up to the end of the episode or of the step budget
-        (resetting it first between episodes); True: the callback stops."""
+        (resetting it first between episodes); True: a callback stops."""
         if not self._in_episode:
             obs, _ = self.env.reset(seed=self._env_seed)
             self._env_seed = None  # seed once; later resets continue the env's stream
             self._begin_episode(obs)
             self._in_episode = True
-        n, ended = self._advance(call.steps_left if call.steps_left is not None else 1 << 62)
+        n, ended = self._advance(call.steps_left if call.steps_left is not None else NEVER)
         self.num_timesteps += n
-        call.count_steps(n)
+        call.count_steps(self, n)
         if not ended:
             return False
         self._in_episode = False
@@ -312,17 +254,10 @@ class BaseAgent:
 
     def _episodes_finished(self, call: "_LearnCall", n: int, records: Iterable[EpisodeRecord]) -> bool:
         """After ``n`` episodes were added to ``history_`` (``records``, which may be none): count them
-        against the budget and the bar, call the callback on each until one returns ``False``, and
-        checkpoint when an episode boundary falls on ``checkpoint_every``. True: the callback stops."""
+        against the budget and hand each to the callbacks until one returns ``False``. True: stop."""
         if call.episodes_left is not None:
             call.episodes_left -= n
-            if call.bar is not None:
-                call.bar.update(n)
-        stop = call.callback is not None and any(call.callback(self, record) is False for record in records)
-        if call.every is not None and n and not self._in_episode and self.num_episodes % call.every == 0:
-            call.log.sync(self.history_)  # (every, checkpoint and log are set together)
-            self.save(call.checkpoint / "checkpoint.zip")
-        return stop
+        return any(call.callbacks.on_episode_end(self, record) is False for record in records)
 
     def episode_history(self) -> dict[str, np.ndarray]:
         """The per-episode records as columns (one array per field; empty before the first episode)."""
@@ -446,26 +381,21 @@ class BaseAgent:
 @dataclass
 class _LearnCall:
     """What one call of :meth:`BaseAgent.learn` carries from chunk to chunk: the budgets left, the
-    callback, the progress bar, the checkpoints, and the clock of the wall time not yet counted."""
+    callbacks, and the clock of the wall time not yet counted."""
 
     steps_left: int | None
     episodes_left: int | None
-    callback: Callback | None
-    bar: Any
-    every: int | None
-    checkpoint: Path | None
-    log: ProgressLog | None
+    callbacks: CallbackList
     t0: float
 
     def budget_left(self) -> bool:
         return ((self.steps_left is None or self.steps_left > 0)
                 and (self.episodes_left is None or self.episodes_left > 0))
 
-    def count_steps(self, n: int) -> None:
+    def count_steps(self, agent: BaseAgent, n: int) -> None:
         if self.steps_left is not None:
             self.steps_left -= n
-            if self.bar is not None:
-                self.bar.update(n)
+        self.callbacks.on_steps(agent, n)
 
     def lap(self) -> float:
         """The seconds since the last lap (or the start); the clock starts again."""

@@ -57,7 +57,7 @@ def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, 
     a finished trial is not run again (its summary is returned).
     """
     import avq.envs  # noqa: F401  (registers avq's environments in a fresh worker)
-    from avq.agents.base import PROGRESS_COLUMNS
+    from avq.agents.callbacks import PROGRESS_COLUMNS
     from avq.agents.registry import make_agent
     from avq.evaluation import evaluate_maze, evaluate_policy
     from avq.runs import make_env

@@ -37,6 +37,7 @@ from avq._validate import (
     check_range,
     check_sarsa_params,
 )
+from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.baselines.tiles import advance_tile_sarsa
@@ -149,7 +150,7 @@ def merged_vector(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 # -- the agent --------------------------------------------------------------------------------------------
 
 
-class ActionCodebookSarsa(BaseAgent):
+class ActionCodebookSarsa(PerStepAgent):
     """Linear Sarsa(λ) on tile-coded states over an adaptive codebook of continuous actions.
 
     The learner is :class:`avq.agents.TileSarsa`'s: ``Q(s, a) = sum_i w[i, a]``

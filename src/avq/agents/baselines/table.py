@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from avq.agents._per_step import PerStepAgent
 from avq.agents._td import clear_traces, decide, table_step
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.base import EpisodeRecord, episode_record
 
 __all__ = ["TableSarsa", "observation_key", "greedy_over_rows"]
 
@@ -46,7 +47,7 @@ def greedy_over_rows(space: Any, obs: np.ndarray, row: Any, Q: np.ndarray) -> np
             out[b] = int(Q[r].argmax())
     return out
 
-class TableSarsa(BaseAgent):
+class TableSarsa(PerStepAgent):
     """Base of the table agents: ``_q``, ``_e`` ``(rows, m)``, the active list ``_act`` of
     :mod:`avq.agents._td`, ``_n`` rows in use; the episode's row, action, steps, return and new rows."""
 

@@ -9,8 +9,9 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_int, check_int_or_ints, check_per_dimension, check_sarsa_params
+from avq.agents._per_step import PerStepAgent
 from avq.agents._td import decide, sarsa_td_error, tile_step
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.tilecoding import TileCoder
 
@@ -66,7 +67,7 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
     return n, ended
 
 
-class TileSarsa(BaseAgent):
+class TileSarsa(PerStepAgent):
     """Linear Sarsa(λ) on tile-coded features, like Sutton & Barto's Mountain Car agent.
 
     The observation is tile-coded by a ``TileCoder`` (src/avq/tilecoding.py; ``n_tilings``

@@ -11,18 +11,19 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
+from avq.agents._per_step import PerStepAgent
 from avq.agents import _maze_loop
 from avq.agents.plan import model as _model
 from avq.agents.plan.fused import run_ps_grid_maze
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.base import EpisodeRecord, episode_record
 
 __all__ = ["PrioritizedSweeping"]
 
 
-class PrioritizedSweeping(BaseAgent):
+class PrioritizedSweeping(PerStepAgent):
     """Model-based RL: a learned model of every (observation, action) pair and prioritized sweeping over it.
 
     Each distinct observation is a state (as in ``tabular``). The model counts, for each pair, its
