@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import avq
-from avq.sweep import sweep
+from avq.sweep import run_sweep
 
 
 def config(episodes: int, seeds: int, grid: dict) -> dict:
@@ -54,7 +54,7 @@ def main() -> None:
           f"episodes on RobotMaze; {args.jobs} workers")
     # Warm the compilation cache so that no backend pays for compiling.
     with tempfile.TemporaryDirectory() as tmp:
-        sweep(config(2, 1, {"alpha": [0.1]}), Path(tmp) / "warm", jobs=1, progress=False)
+        run_sweep(config(2, 1, {"alpha": [0.1]}), Path(tmp) / "warm", jobs=1, progress=False)
     runs = [("one process, one after another", "local", 1), ("local (joblib processes)", "local", args.jobs),
             ("ray (local cluster started)", "ray", args.jobs), ("dask (LocalCluster started)", "dask", args.jobs)]
     times: dict[str, float] = {}
@@ -64,7 +64,7 @@ def main() -> None:
             out = Path(tmp) / label.split()[0]
             t = time.perf_counter()
             try:
-                sweep(cfg, out, backend=backend, jobs=jobs, progress=False)
+                run_sweep(cfg, out, backend=backend, jobs=jobs, progress=False)
             except ValueError as exc:  # a backend that is not installed
                 print(f"   {label}: skipped ({exc})")
                 continue

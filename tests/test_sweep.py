@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 import avq
-from avq.sweep import plan_trials, read_sweep_config, report, sweep
+from avq.sweep import plan_trials, read_sweep_config, report, run_sweep
 
 CONFIG = {
     "env": "avq/GridMaze-v0",
@@ -38,7 +38,7 @@ def _table(out: Path) -> list[dict[str, str]]:
 @pytest.fixture(scope="module")
 def local_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep") / "local"
-    rows = sweep(CONFIG, out, backend="local", jobs=2, progress=False)
+    rows = run_sweep(CONFIG, out, backend="local", jobs=2, progress=False)
     return out, rows
 
 
@@ -77,10 +77,10 @@ def test_seeds_come_from_the_root_seed_and_are_shared_by_configurations(local_ru
 def test_rerun_skips_finished_trials_and_gives_the_same_table(local_run, tmp_path):
     out, _ = local_run
     stamp = {p: p.stat().st_mtime_ns for p in (out / "trials").rglob("summary.json")}
-    sweep(CONFIG, out, jobs=2, progress=False)
+    run_sweep(CONFIG, out, jobs=2, progress=False)
     assert {p: p.stat().st_mtime_ns for p in (out / "trials").rglob("summary.json")} == stamp
     with pytest.raises(ValueError, match="different sweep"):
-        sweep({**CONFIG, "episodes": 31}, out, progress=False)
+        run_sweep({**CONFIG, "episodes": 31}, out, progress=False)
 
 
 def test_report_ranks_configurations_with_their_spread(local_run):
@@ -100,7 +100,7 @@ def test_report_ranks_configurations_with_their_spread(local_run):
 
 def test_a_failing_trial_is_recorded_and_the_others_finish(tmp_path):
     config = {**CONFIG, "agents": ["tabular"], "grid": {"env_kwargs.layout": ["open5", "no-such-layout"]}, "seeds": 1}
-    rows = sweep(config, tmp_path / "s", jobs=1, progress=False)
+    rows = run_sweep(config, tmp_path / "s", jobs=1, progress=False)
     by = {r["config/env_kwargs.layout"]: r for r in rows}
     assert by["open5"]["status"] == "ok" and by["open5"]["success_rate"] is not None
     assert by["no-such-layout"]["status"] == "failed" and "no-such-layout" in by["no-such-layout"]["error"]
@@ -163,7 +163,7 @@ def test_cli_mistakes_exit_2(args, needle, tmp_path):
 def test_a_missing_backend_names_its_extra(monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray now fails, as when it is not installed
     with pytest.raises(ValueError, match=r'pip install "avq\[ray\]"'):
-        sweep(CONFIG, tmp_path / "o", backend="ray", progress=False)
+        run_sweep(CONFIG, tmp_path / "o", backend="ray", progress=False)
 
 
 def test_ray_cluster_gives_the_local_results(local_run, tmp_path):
@@ -171,7 +171,7 @@ def test_ray_cluster_gives_the_local_results(local_run, tmp_path):
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)  # a real local cluster
     try:
         assert ray.is_initialized()
-        sweep(CONFIG, tmp_path / "ray", backend="ray", progress=False)
+        run_sweep(CONFIG, tmp_path / "ray", backend="ray", progress=False)
     finally:
         ray.shutdown()
     assert _table(tmp_path / "ray") == _table(local_run[0])
@@ -181,7 +181,7 @@ def test_dask_cluster_gives_the_local_results(local_run, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
-        sweep(CONFIG, tmp_path / "dask", backend="dask", address=cluster.scheduler_address, progress=False)
+        run_sweep(CONFIG, tmp_path / "dask", backend="dask", address=cluster.scheduler_address, progress=False)
     assert _table(tmp_path / "dask") == _table(local_run[0])
 
 
@@ -214,7 +214,7 @@ def test_an_unreachable_cluster_or_a_grid_env_typo_fails_before_anything_is_writ
         port = s.getsockname()[1]
     for backend in ("ray", "dask"):
         with pytest.raises(ValueError, match=f"cannot reach the {backend} cluster"):
-            sweep(CONFIG, tmp_path / backend, backend=backend, address=f"127.0.0.1:{port}", progress=False)
+            run_sweep(CONFIG, tmp_path / backend, backend=backend, address=f"127.0.0.1:{port}", progress=False)
         assert not (tmp_path / backend).exists()
     with pytest.raises(ValueError, match="grid.env_kwargs.layot"):
         read_sweep_config({**CONFIG, "grid": {"env_kwargs.layot": ["open5"]}})
@@ -237,4 +237,17 @@ def test_sweeps_and_training_runs_keep_out_of_each_others_directories(local_run,
     run = tmp_path / "run"
     train("avq/GridMaze-v0", "tabular", episodes=2, out=run, progress=False)
     with pytest.raises(ValueError, match="holds a run of 'avq train'"):
-        sweep(CONFIG, run, progress=False)
+        run_sweep(CONFIG, run, progress=False)
+
+
+def test_the_old_name_avq_sweep_still_runs_a_sweep_with_a_deprecation_warning(tmp_path):
+    import avq
+
+    assert callable(avq.run_sweep) and avq.run_sweep is avq.sweep.run_sweep
+    with pytest.warns(DeprecationWarning, match=r"avq.run_sweep"):
+        old = avq.sweep(CONFIG, tmp_path / "old", jobs=1, progress=False)
+    with pytest.warns(DeprecationWarning, match=r"avq.run_sweep"):
+        avq.sweep.sweep(CONFIG, tmp_path / "older", jobs=1, progress=False)
+    new = avq.run_sweep(CONFIG, tmp_path / "new", jobs=1, progress=False)
+    drop = ("wall_s", "trial_dir")
+    assert [{k: v for k, v in r.items() if k not in drop} for r in old] == [{k: v for k, v in r.items() if k not in drop} for r in new]

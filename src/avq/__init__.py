@@ -7,26 +7,18 @@ Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/R
   `avq.agents.registry`); the classes are here and in `avq.agents`; `avq.load` reads a saved one.
 - Environments and maze layouts: `avq.envs`.
 - Evaluation: `avq.evaluate_maze`, the greedy policy from every start of a maze.
-- Sweeps of configurations and seeds, locally or on Ray or Dask: `avq.sweep`.
+- Sweeps of configurations and seeds, locally or on Ray or Dask: `avq.run_sweep` (the package `avq.sweep`).
 - The checks every agent passes: `avq.checks`.
 """
 
 from avq._version import __version__
 from avq import envs  # noqa: F401  (registers the environments)
-from avq.agents import (AGENTS, ActionCodebookSarsa, AVQSarsa, BaseAgent, GridSarsa, PlanningAVQ, PrioritizedSweeping, TabularSarsa,
-                        TileSarsa, load, make_agent)
+from avq.agents import (AGENTS, ActionCodebookSarsa, AVQSarsa, BaseAgent, CheckpointCallback, GridSarsa, PlanningAVQ,
+                        PrioritizedSweeping, TabularSarsa, TileSarsa, load, make_agent)
 from avq.evaluation import evaluate_maze
 from avq import checks  # noqa: F401  (avq.checks.check_agent, the conformance checker, after ``import avq``)
 from avq.quantizer import Codebook
-
-# Imported here, not lazily through a module-level __getattr__ (PEP 562): ``avq.sweep`` names both this
-# function and the subpackage avq/sweep/, and the import system sets the attribute ``avq.sweep`` to the
-# subpackage whenever it is first imported (``from avq.sweep import report``, the CLI, a worker). Were it
-# lazy, ``avq.sweep(...)`` would then fail with "'module' object is not callable"; imported here, the
-# subpackage is loaded before anything can import it, and ``avq.sweep`` stays the function. The price is
-# small: avq/sweep/ imports only the standard library, NumPy and avq._io at load time (joblib, Ray, Dask,
-# YAML, tqdm and Matplotlib inside the functions that use them), about 3 ms of the ~0.4 s of ``import avq``.
-from avq.sweep import sweep
+from avq.sweep import run_sweep
 
 __all__ = [
     "AVQSarsa",
@@ -37,12 +29,13 @@ __all__ = [
     "TileSarsa",
     "ActionCodebookSarsa",
     "BaseAgent",
+    "CheckpointCallback",
     "Codebook",
     "AGENTS",
     "make_agent",
     "load",
     "evaluate_maze",
-    "sweep",
+    "run_sweep",
     "__version__",
     "agents",
     "envs",

@@ -302,7 +302,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from avq.sweep import SweepInterrupted, report, sweep
+    from avq.sweep import SweepInterrupted, report, run_sweep
 
     if args.target[0] == "report":
         if len(args.target) != 2:
@@ -324,7 +324,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if not os.path.isfile(args.target[0]):
         raise UsageError(f"no such sweep config: {args.target[0]}")
     try:
-        rows = sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
+        rows = run_sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
                      progress=_progress(args), log=print)
     except SweepInterrupted as stop:
         again = ["avq", "sweep", args.target[0], "--out", args.out]

@@ -27,6 +27,9 @@ from __future__ import annotations
 
 import json
 import os
+import sys
+import types
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -37,7 +40,7 @@ from avq.sweep.config import METRICS, SweepConfig, _is_int, read_sweep_config
 from avq.sweep.results import _plot_curves, _rows, _write_results, report
 from avq.sweep.trial import Trial, _trial_kwargs, plan_trials, run_trial  # noqa: F401  (Trial: importable here, as before)
 
-__all__ = ["SweepConfig", "read_sweep_config", "plan_trials", "run_trial", "sweep", "report", "SweepInterrupted",
+__all__ = ["SweepConfig", "read_sweep_config", "plan_trials", "run_trial", "run_sweep", "report", "SweepInterrupted",
            "BACKENDS", "METRICS"]
 
 
@@ -58,9 +61,9 @@ class SweepInterrupted(KeyboardInterrupt):
         self.out, self.finished, self.total = out, finished, total
 
 
-def sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | os.PathLike, *,
-          backend: str = "local", address: str | None = None, jobs: int | None = None,
-          progress: bool = True, log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+def run_sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | os.PathLike, *,
+              backend: str = "local", address: str | None = None, jobs: int | None = None,
+              progress: bool = True, log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Run every trial of a sweep that has not finished yet; write ``results.csv`` and ``curves.png``.
 
     Args:
@@ -138,3 +141,22 @@ def sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | o
             _write_results(out, cfg, rows)
         _plot_curves(out, cfg, trials, results)
         return rows
+
+
+def sweep(*args: Any, **kwargs: Any) -> list[dict[str, Any]]:
+    """Deprecated: :func:`run_sweep` (the old name, which was also this package's)."""
+    warnings.warn("avq.sweep.sweep() is deprecated and will be removed in avq 0.3; call avq.run_sweep()",
+                  DeprecationWarning, stacklevel=2)
+    return run_sweep(*args, **kwargs)
+
+
+class _CallablePackage(types.ModuleType):
+    """This package, callable as ``avq.sweep(...)`` was before the function became :func:`run_sweep`."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> list[dict[str, Any]]:
+        warnings.warn("avq.sweep(...) is deprecated and will be removed in avq 0.3; call avq.run_sweep(...)",
+                      DeprecationWarning, stacklevel=2)
+        return run_sweep(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallablePackage
