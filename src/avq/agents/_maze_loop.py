@@ -19,16 +19,17 @@ grows the agent's arrays when asked, and hands the episode back to the environme
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from numba import njit
 
+from avq._numba import borrowed
 from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
 
-__all__ = ["plan", "maze_arguments", "drive", "maze_start", "maze_move", "maze_observation", "DONE", "NEED_CAPACITY",
+__all__ = ["Maze", "plan", "maze_arguments", "borrowed_maze", "drive", "maze_start", "maze_move", "maze_observation", "DONE", "NEED_CAPACITY",
            "RECORDS_FULL", "N_R"]
 
 # Records written by the fused loops, one row per episode.
@@ -54,17 +55,45 @@ def plan(env, grid_only: bool = False) -> CompiledMaze | None:
     return maze
 
 
-def maze_arguments(maze: CompiledMaze) -> tuple:
-    """The maze's part of a fused loop's arguments: ``(robot, walls, gx, gy, starts, fixed, move,
-    radius, slip, dirs, sonar_range, observe_sonar, max_episode_steps)``; ``fixed`` is the fixed start,
-    or NaN for random starts."""
+class Maze(NamedTuple):
+    """A built-in maze as a fused loop reads it (one record, which Numba takes as it is)."""
+
+    #: RobotMaze (continuous moves, ``walls`` its occupancy grid) or GridMaze (``walls`` its squares).
+    robot: bool
+    walls: np.ndarray
+    #: The goal.
+    gx: float
+    gy: float
+    starts: np.ndarray
+    #: The fixed start, or NaN for random starts.
+    fixed: np.ndarray
+    #: RobotMaze's move length and radius; GridMaze's slip probability.
+    move: float
+    radius: float
+    slip: float
+    #: RobotMaze's sonar: directions, range, whether observed.
+    dirs: np.ndarray
+    sonar_range: float
+    observe_sonar: bool
+    max_episode_steps: int
+
+
+def maze_arguments(maze: CompiledMaze) -> Maze:
+    """The :class:`Maze` record of a compiled maze, for a fused loop."""
     d = maze.dynamics
     fixed = np.array(d.fixed_start if d.fixed_start is not None else (np.nan, np.nan), dtype=np.float64)
     if isinstance(d, GridDynamics):
-        return (False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0, d.slip,
-                np.zeros((0, 2)), 0.0, False, maze.max_episode_steps)
-    return (True, d.grid, d.goal[0], d.goal[1], d.starts, fixed, d.move, d.radius, 0.0, d.sonar_directions,
-            d.sonar_range, d.observe_sonar, maze.max_episode_steps)
+        return Maze(False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0, float(d.slip),
+                    np.zeros((0, 2)), 0.0, False, int(maze.max_episode_steps))
+    return Maze(True, d.grid, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, float(d.move), float(d.radius),
+                0.0, d.sonar_directions, float(d.sonar_range), bool(d.observe_sonar), int(maze.max_episode_steps))
+
+
+@njit(cache=True, inline="always")
+def borrowed_maze(mz: Maze) -> Maze:
+    """``mz`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for the loop's own use."""
+    return Maze(mz.robot, borrowed(mz.walls), mz.gx, mz.gy, borrowed(mz.starts), mz.fixed, mz.move, mz.radius,
+                mz.slip, borrowed(mz.dirs), mz.sonar_range, mz.observe_sonar, mz.max_episode_steps)
 
 
 def drive(maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int,
@@ -87,29 +116,29 @@ def drive(maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_st
 
 
 @njit(cache=True, inline="always")
-def maze_start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius) -> None:
+def maze_start(env_rng, pos, mz) -> None:
     """A new episode's start, drawn as the maze's ``reset`` draws it."""
-    if fixed[0] == fixed[0]:  # not NaN: a fixed start
-        pos[0] = fixed[0]
-        pos[1] = fixed[1]
-    elif robot:
-        pos[0], pos[1] = random_start(env_rng, starts, walls, radius, gx, gy)
+    if mz.fixed[0] == mz.fixed[0]:  # not NaN: a mz.fixed start
+        pos[0] = mz.fixed[0]
+        pos[1] = mz.fixed[1]
+    elif mz.robot:
+        pos[0], pos[1] = random_start(env_rng, mz.starts, mz.walls, mz.radius, mz.gx, mz.gy)
     else:
-        k = env_rng.integers(0, starts.shape[0])
-        pos[0] = starts[k, 0]
-        pos[1] = starts[k, 1]
+        k = env_rng.integers(0, mz.starts.shape[0])
+        pos[0] = mz.starts[k, 0]
+        pos[1] = mz.starts[k, 1]
     pos[2] = 0.0
 
 
 @njit(cache=True, inline="always")
-def maze_move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip):
+def maze_move(env_rng, pos, a, mz):
     """One step of the maze from ``pos`` (in place): ``(reward, terminated, collision)``. GridMaze's
-    moves slip as its ``step`` makes them slip (from the maze's generator)."""
-    if robot:
-        pos[0], pos[1], r, terminated, collision = robot_move(walls, pos[0], pos[1], a, move, radius, gx, gy)
+    moves mz.slip as its ``step`` makes them mz.slip (from the maze's generator)."""
+    if mz.robot:
+        pos[0], pos[1], r, terminated, collision = robot_move(mz.walls, pos[0], pos[1], a, mz.move, mz.radius, mz.gx, mz.gy)
     else:
-        a = slipped(env_rng, a, slip)
-        nx, ny, r, terminated, collision = grid_move(walls, int(pos[0]), int(pos[1]), a, int(gx), int(gy))
+        a = slipped(env_rng, a, mz.slip)
+        nx, ny, r, terminated, collision = grid_move(mz.walls, int(pos[0]), int(pos[1]), a, int(mz.gx), int(mz.gy))
         pos[0] = nx
         pos[1] = ny
     pos[2] += 1.0
@@ -117,16 +146,16 @@ def maze_move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip):
 
 
 @njit(cache=True, inline="always")
-def maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar) -> None:
+def maze_observation(x, pos, mz, sonar) -> None:
     """The observation at ``pos`` as the agent sees it: GridMaze's integer ``(x, y)``; RobotMaze's
     float32 values (and sonar ranges), as float64."""
-    if not robot:
+    if not mz.robot:
         x[0] = pos[0]
         x[1] = pos[1]
         return
     x[0] = np.float64(np.float32(pos[0]))
     x[1] = np.float64(np.float32(pos[1]))
-    if observe_sonar:
-        sonar_ranges(walls, pos[0], pos[1], radius, dirs, sonar_range, sonar)
+    if mz.observe_sonar:
+        sonar_ranges(mz.walls, pos[0], pos[1], mz.radius, mz.dirs, mz.sonar_range, sonar)
         for k in range(sonar.shape[0]):
             x[2 + k] = np.float64(np.float32(sonar[k]))

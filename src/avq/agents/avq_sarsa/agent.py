@@ -7,9 +7,9 @@ from typing import Any, Sequence
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-import numba
 from numba.core.errors import TypingError
 
+from avq._numba import direct_call
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents.avq_sarsa import kernels as core
 from avq.agents import _maze_loop
@@ -375,7 +375,7 @@ class AVQSarsa(BaseAgent):
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         # One compiled call per step (core.generic_step). Once a step has gone through Numba's dispatcher,
         # later steps with arguments of the same types call the compiled function it chose directly
-        # (_direct_call), which halves the cost of a call; what the kernel cannot do at once (more room,
+        # (avq._numba.direct_call), which halves the cost of a call; what the kernel cannot do at once (more room,
         # more draws, a bad observation) goes through _compiled, which then hands the step back here.
         step, kernel, S, draws = self.env.step, core.generic_step, self._S, self._draws
         fb, ib, raw, cursor = self._fb, self._ib, draws.raw, draws.cursor
@@ -403,7 +403,7 @@ class AVQSarsa(BaseAgent):
                     r = self._as_reward(r, int(S[core.EP_STEPS]) + 1)
                     a = core.NEED_DRAWS
                 else:
-                    direct = _direct_call(kernel, (fb, ib, raw, cursor, obs, r, collision, terminated, truncated))
+                    direct = direct_call(kernel, (fb, ib, raw, cursor, obs, r, collision, terminated, truncated))
                     obs_dtype, obs_shape, r_type = obs.dtype, obs.shape, type(r)
                     self._direct = (direct, obs_dtype, obs_shape, r_type)
             if a < ended:
@@ -427,10 +427,10 @@ class AVQSarsa(BaseAgent):
         maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
-        args = _maze_loop.maze_arguments(maze)
+        mz = _maze_loop.maze_arguments(maze)
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_avq_maze(*self._state(), self._rng, maze.np_random, *args, pos, budget_steps,
+            return run_avq_maze(*self._state(), self._rng, maze.np_random, mz, pos, budget_steps,
                                        budget_episodes, rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
@@ -495,19 +495,3 @@ class AVQSarsa(BaseAgent):
 
 #: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.
 _MERGE_PAIRS = ("mutual", "mutual_ties", "nearest")
-
-
-def _direct_call(dispatcher: Any, args: tuple) -> Any:
-    """The compiled function that Numba's ``dispatcher`` runs for ``args`` (which it has just run), or None.
-
-    Calling it directly skips the dispatcher's type resolution (about 0.5 µs a call). It converts its
-    arguments to the types it was compiled for without checking them, so the caller calls it only with
-    arguments of the same types: our own arrays, an observation of the same dtype, shape and (C)
-    layout, a reward of the same Python type, and booleans.
-    """
-    try:
-        key = tuple(numba.typeof(v) for v in args)
-    except ValueError:
-        return None
-    compiled = dispatcher.overloads.get(key)
-    return None if compiled is None else compiled.entry_point

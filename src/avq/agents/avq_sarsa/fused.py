@@ -8,7 +8,8 @@ from numba import njit
 
 from avq._numba import borrowed
 from avq.quantizer import nearest_index
-from avq.agents._maze_loop import DONE, NEED_CAPACITY, RECORDS_FULL, maze_move, maze_observation, maze_start
+from avq.agents._maze_loop import (DONE, NEED_CAPACITY, RECORDS_FULL, borrowed_maze, maze_move, maze_observation,
+                                   maze_start)
 from avq.agents.avq_sarsa.kernels import (ACTION, GEOM, IN_EPISODE, SIZE, begin_episode, decide, end_episode, learn,
                                           observe, observe_at)
 
@@ -16,29 +17,28 @@ __all__ = ["run_avq_maze"]
 
 
 @njit(cache=True)
-def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
-                 robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
-                 max_episode_steps, pos, budget_steps, budget_episodes, rec):
+def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng, mz, pos, budget_steps, budget_episodes,
+                 rec):
     """Train AVQ Sarsa(λ) on a maze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
 
-    The maze's arguments are those of :func:`maze_arguments`; ``pos`` holds the robot's ``x, y`` and
+    ``mz`` is the maze (:class:`~avq.agents._maze_loop.Maze`); ``pos`` holds the robot's ``x, y`` and
     the steps taken in the current episode. On GridMaze, the nearest cell of every square is kept
     while the codebook does not change. Returns ``(steps, episodes, status)``.
     """
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
         borrowed(V), borrowed(Q), borrowed(E), borrowed(born), borrowed(act), borrowed(pc),
         borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F))
-    walls, starts, dirs, pos, rec = borrowed(walls), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
+    mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
     scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
     steps = 0
     episodes = 0
-    cache_shape = (1, 1) if robot else walls.shape
+    cache_shape = (1, 1) if mz.robot else mz.walls.shape
     cell_cache = np.full(cache_shape, -1, dtype=np.int64)
     dist_cache = np.zeros(cache_shape)
     cache_geom = -1
     x = np.empty(V.shape[1])
-    sonar = np.empty(dirs.shape[0])
+    sonar = np.empty(mz.dirs.shape[0])
     while True:
         if S[IN_EPISODE] == 0:
             if steps >= budget_steps or episodes >= budget_episodes:
@@ -47,8 +47,8 @@ def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
                 return steps, episodes, RECORDS_FULL
             if S[SIZE] + 1 > cap:
                 return steps, episodes, NEED_CAPACITY
-            maze_start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
-            maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+            maze_start(env_rng, pos, mz)
+            maze_observation(x, pos, mz, sonar)
             cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
             S[ACTION] = decide(rng, Q, born, P, cell, scr)
         if steps >= budget_steps:
@@ -56,12 +56,12 @@ def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng,
         if S[SIZE] + 3 > cap:
             return steps, episodes, NEED_CAPACITY
         a = S[ACTION]
-        r, terminated, collision = maze_move(env_rng, pos, a, robot, walls, gx, gy, move, radius, slip)
-        truncated = pos[2] >= max_episode_steps
-        maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+        r, terminated, collision = maze_move(env_rng, pos, a, mz)
+        truncated = pos[2] >= mz.max_episode_steps
+        maze_observation(x, pos, mz, sonar)
         steps += 1
         done = terminated or truncated
-        if robot:
+        if mz.robot:
             j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r, collision, done)
         else:
             if cache_geom != S[GEOM]:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from numba import njit
 
 from avq._numba import borrowed
-from avq.agents._maze_loop import DONE, RECORDS_FULL, maze_move, maze_start
+from avq.agents._maze_loop import DONE, RECORDS_FULL, borrowed_maze, maze_move, maze_start
 from avq.agents._td import clear_traces, epsilon_greedy, table_step
 
 __all__ = ["run_tabular_grid_maze"]
@@ -28,19 +28,18 @@ def _table_row(row_of, keys, T, x, y):
 
 @njit(cache=True)
 def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
-                          robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range,
-                          observe_sonar, max_episode_steps, pos, budget_steps, budget_episodes, rec):
+                          mz, pos, budget_steps, budget_episodes, rec):
     """Tabular Sarsa(λ) on a GridMaze: :func:`avq.agents._td.table_step` at every step, as ``TabularSarsa``
     does stepping the environment.
 
     ``T``: rows in use, current row, current action, episode steps, rows added this
     episode, in-episode flag; ``TF[0]``: episode return. ``q`` and ``e`` must have a
     row for every position; ``act`` is the active list of :mod:`avq.agents._td`.
-    Returns ``(steps, episodes, status)``. (GridMaze only: ``robot`` must be False.)
+    Returns ``(steps, episodes, status)``. (GridMaze only: ``mz.robot`` must be False.)
     """
     q, e, act, row_of, keys, T, TF = (borrowed(q), borrowed(e), borrowed(act), borrowed(row_of), borrowed(keys),
                                       borrowed(T), borrowed(TF))
-    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
+    mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     while True:
@@ -49,7 +48,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
                 return steps, episodes, DONE
             if episodes >= rec.shape[0]:
                 return steps, episodes, RECORDS_FULL
-            maze_start(env_rng, pos, False, walls, gx, gy, starts, fixed, radius)
+            maze_start(env_rng, pos, mz)
             clear_traces(e, act)
             T[3] = 0
             T[4] = 0
@@ -59,8 +58,8 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
             T[5] = 1
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, _ = maze_move(env_rng, pos, T[2], False, walls, gx, gy, move, radius, slip)
-        truncated = pos[2] >= max_episode_steps
+        r, terminated, _ = maze_move(env_rng, pos, T[2], mz)
+        truncated = pos[2] >= mz.max_episode_steps
         steps += 1
         T[3] += 1
         TF[0] += r

@@ -109,7 +109,7 @@ class TabularSarsa(TableSarsa):
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer rows than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
-        args = _maze_loop.maze_arguments(maze)
+        mz = _maze_loop.maze_arguments(maze)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
@@ -126,7 +126,7 @@ class TabularSarsa(TableSarsa):
             def kernel(pos, budget_steps, budget_episodes, rec):
                 return run_tabular_grid_maze(
                     self._q, self._e, self._act, row_of, keys, T, TF, self.alpha, self.gamma, self.lam,
-                    self.epsilon, self.traces == "replacing", self._rng, maze.np_random, *args, pos, budget_steps,
+                    self.epsilon, self.traces == "replacing", self._rng, maze.np_random, mz, pos, budget_steps,
                     budget_episodes, rec)
 
             steps, rows = _maze_loop.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)

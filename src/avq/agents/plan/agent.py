@@ -296,10 +296,10 @@ class PlanningAVQ(BaseAgent):
         maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
-        args = _maze_loop.maze_arguments(maze)
+        mz = _maze_loop.maze_arguments(maze)
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_plan_maze(*self._arrays(), self._rng, maze.np_random, *args, pos, budget_steps,
+            return run_plan_maze(*self._arrays(), self._rng, maze.np_random, mz, pos, budget_steps,
                                         budget_episodes, rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):

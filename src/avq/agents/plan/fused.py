@@ -9,7 +9,8 @@ from numba import njit
 
 from avq._numba import borrowed
 from avq.quantizer import nearest_index
-from avq.agents._maze_loop import DONE, NEED_CAPACITY, RECORDS_FULL, maze_move, maze_observation, maze_start
+from avq.agents._maze_loop import (DONE, NEED_CAPACITY, RECORDS_FULL, borrowed_maze, maze_move, maze_observation,
+                                   maze_start)
 from avq.agents._td import epsilon_greedy
 from avq.agents.plan import kernels as plan_core
 from avq.agents.plan import model as _model
@@ -28,9 +29,8 @@ def _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_he
 
 @njit(cache=True)
 def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
-                  e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, env_rng,
-                  robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
-                  max_episode_steps, pos, budget_steps, budget_episodes, rec):
+                  e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, env_rng, mz, pos, budget_steps,
+                  budget_episodes, rec):
     """Train ``avq-plan`` on a maze: :func:`avq.agents.plan.kernels.start` and ``step`` at every step, as
     ``PlanningAVQ`` does stepping the environment. On GridMaze the nearest cell of every square is kept
     while the codebook does not change. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
@@ -41,12 +41,12 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
     (cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
      MP) = _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
                            hpos, prio, C, MP)
-    walls, starts, dirs, pos, rec = borrowed(walls), borrowed(starts), borrowed(dirs), borrowed(pos), borrowed(rec)
+    mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     x = np.empty(V.shape[1])
-    sonar = np.empty(dirs.shape[0])
-    cache_shape = (1, 1) if robot else walls.shape
+    sonar = np.empty(mz.dirs.shape[0])
+    cache_shape = (1, 1) if mz.robot else mz.walls.shape
     cell_cache = np.full(cache_shape, -1, dtype=np.int64)
     dist_cache = np.zeros(cache_shape)
     cache_geom = -1
@@ -58,18 +58,18 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
                 return steps, episodes, DONE
             if episodes >= rec.shape[0]:
                 return steps, episodes, RECORDS_FULL
-            maze_start(env_rng, pos, robot, walls, gx, gy, starts, fixed, radius)
-            maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+            maze_start(env_rng, pos, mz)
+            maze_observation(x, pos, mz, sonar)
             plan_core.start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
                             e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x)
             continue
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, collision = maze_move(env_rng, pos, S[plan_core.ACTION], robot, walls, gx, gy, move, radius, slip)
-        truncated = pos[2] >= max_episode_steps
-        maze_observation(x, pos, robot, walls, radius, dirs, sonar_range, observe_sonar, sonar)
+        r, terminated, collision = maze_move(env_rng, pos, S[plan_core.ACTION], mz)
+        truncated = pos[2] >= mz.max_episode_steps
+        maze_observation(x, pos, mz, sonar)
         steps += 1
-        if robot:
+        if mz.robot:
             j, d2 = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
         else:
             if cache_geom != S[plan_core.GEOM]:
@@ -91,9 +91,8 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
 
 @njit(cache=True)
 def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                     prio, C, MP, row_of, keys, T, TF, gamma, epsilon, n_backups, rng, env_rng,
-                     robot, walls, gx, gy, starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar,
-                     max_episode_steps, pos, budget_steps, budget_episodes, rec):
+                     prio, C, MP, row_of, keys, T, TF, gamma, epsilon, n_backups, rng, env_rng, mz, pos, budget_steps,
+                     budget_episodes, rec):
     """Prioritized sweeping (``tabular-ps``) on a GridMaze: a state for every position on its first visit and
     :func:`avq.agents.plan.model.ps_step` at every step, as ``PrioritizedSweeping`` does stepping the
     environment. ``T``: current row, current action, episode steps, rows added this episode, in-episode
@@ -103,7 +102,7 @@ def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_h
      MP) = _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
                            hpos, prio, C, MP)
     row_of, keys, T, TF = borrowed(row_of), borrowed(keys), borrowed(T), borrowed(TF)
-    walls, starts, pos, rec = borrowed(walls), borrowed(starts), borrowed(pos), borrowed(rec)
+    mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     while True:
@@ -114,7 +113,7 @@ def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_h
                 return steps, episodes, DONE
             if episodes >= rec.shape[0]:
                 return steps, episodes, RECORDS_FULL
-            maze_start(env_rng, pos, False, walls, gx, gy, starts, fixed, radius)
+            maze_start(env_rng, pos, mz)
             T[2] = 0
             T[3] = 0
             TF[0] = 0.0
@@ -125,8 +124,8 @@ def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_h
             continue
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, _ = maze_move(env_rng, pos, T[1], False, walls, gx, gy, move, radius, slip)
-        truncated = pos[2] >= max_episode_steps
+        r, terminated, _ = maze_move(env_rng, pos, T[1], mz)
+        truncated = pos[2] >= mz.max_episode_steps
         steps += 1
         T[2] += 1
         TF[0] += r

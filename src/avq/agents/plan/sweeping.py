@@ -194,12 +194,12 @@ class PrioritizedSweeping(PerStepAgent):
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer states than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
-        args = _maze_loop.maze_arguments(maze)
+        mz = _maze_loop.maze_arguments(maze)
         model = self._model
 
         def kernel(pos, budget_steps, budget_episodes, rec):
             return run_ps_grid_maze(*model.a, row_of, keys, T, TF, self.gamma, self.epsilon, self.n_backups,
-                                           self._rng, maze.np_random, *args, pos, budget_steps, budget_episodes, rec)
+                                           self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes, rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             nonlocal row_of, keys, T, TF
