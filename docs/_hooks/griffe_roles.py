@@ -20,7 +20,16 @@ QUALIFIED = re.compile(r"(?<![`\[\w])`(avq(?:\.[A-Za-z_]\w*)+)(\(\))?`(?!\])")
 
 
 class DocstringRoles(griffe.Extension):
-    """Rewrite every docstring of the package once it is loaded."""
+    """Rewrite every docstring of the package once it is loaded.
+
+    Args:
+        documented: The modules that have a page in the reference. A name found in another module (a
+            private one, say) stays code rather than a link to a page that does not exist.
+    """
+
+    def __init__(self, documented: list[str] | None = None) -> None:
+        super().__init__()
+        self.documented = tuple(documented or ())
 
     def on_package(self, *, pkg: griffe.Module, **kwargs: Any) -> None:
         if pkg.name != "avq":
@@ -31,7 +40,7 @@ class DocstringRoles(griffe.Extension):
                 _comment_docstring(obj)
         for obj in _walk(pkg):
             if obj.docstring:
-                obj.docstring.value = _rewrite(obj.docstring.value, obj, collection)
+                obj.docstring.value = _rewrite(obj.docstring.value, obj, collection, self.documented)
 
 
 def _walk(obj: griffe.Object):
@@ -57,39 +66,46 @@ def _comment_docstring(attr: griffe.Object) -> None:
         attr.docstring = griffe.Docstring("\n".join(comment), lineno=attr.lineno, parent=attr)
 
 
-def _exists(path: str, collection: Any) -> bool:
-    """Whether ``path`` names an object that the reference shows: it has a docstring (or is a module)."""
+def _exists(path: str, collection: Any, documented: tuple[str, ...] = ()) -> bool:
+    """Whether ``path`` names an object that the reference shows: it has a docstring (or is a module),
+    and it is in one of the ``documented`` modules (by the path it is named with, or where it is defined)."""
     try:
         obj = collection[path]
     except (KeyError, ValueError, griffe.AliasResolutionError, griffe.CyclicAliasError):
         return False
     try:
-        return obj.is_module or bool(obj.docstring)
+        if not (obj.is_module or obj.docstring):
+            return False
+        if not documented:
+            return True
+        module = obj.path if obj.is_module else obj.module.path
+        named_in = path.rsplit(".", 1)[0]
+        return module in documented or named_in in documented
     except (griffe.AliasResolutionError, griffe.CyclicAliasError):
         return False
 
 
-def _resolve(name: str, obj: griffe.Object, collection: Any) -> str | None:
+def _resolve(name: str, obj: griffe.Object, collection: Any, documented: tuple[str, ...]) -> str | None:
     name = name.removesuffix("()")
     if name.startswith("avq."):
-        return name if _exists(name, collection) else None
+        return name if _exists(name, collection, documented) else None
     scope: griffe.Object | None = obj
     while scope is not None:
         candidate = f"{scope.path}.{name}"
-        if _exists(candidate, collection):
+        if _exists(candidate, collection, documented):
             return candidate
         scope = scope.parent
     return None
 
 
-def _rewrite(text: str, obj: griffe.Object, collection: Any) -> str:
+def _rewrite(text: str, obj: griffe.Object, collection: Any, documented: tuple[str, ...]) -> str:
     def role(match: re.Match) -> str:
         name = match.group(1)
-        target = _resolve(name, obj, collection)
+        target = _resolve(name, obj, collection, documented)
         return f"[`{name}`][{target}]" if target else f"`{name}`"
 
     def qualified(match: re.Match) -> str:
-        target = _resolve(match.group(1), obj, collection)
+        target = _resolve(match.group(1), obj, collection, documented)
         return f"[`{match.group(1)}{match.group(2) or ''}`][{target}]" if target else match.group(0)
 
     return QUALIFIED.sub(qualified, ROLE.sub(role, text))
