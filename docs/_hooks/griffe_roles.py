@@ -78,9 +78,16 @@ def _exists(path: str, collection: Any, documented: tuple[str, ...] = ()) -> boo
             return False
         if not documented:
             return True
-        module = obj.path if obj.is_module else obj.module.path
-        named_in = path.rsplit(".", 1)[0]
-        return module in documented or named_in in documented
+        if (obj.path if obj.is_module else obj.module.path) in documented:
+            return True
+        # named through a documented module (``avq.agents.BaseAgent.save``): that module's page shows it,
+        # unless the name goes on into a module that has no page
+        prefixes = [m for m in documented if path.startswith(m + ".")]
+        if not prefixes:
+            return False
+        head = max(prefixes, key=len)
+        first = collection[f"{head}.{path[len(head) + 1:].split('.')[0]}"]
+        return not (first.is_module and first.path not in documented)
     except (griffe.AliasResolutionError, griffe.CyclicAliasError):
         return False
 
