@@ -9,7 +9,7 @@ episodes), the number of actions at the end, environment steps and wall time.
 Writes ``data/action_codebook.csv`` (one row per run) and
 ``figures/action_codebook.png`` under ``--out``, and prints the table.
 
-    python benchmarks/action_codebook.py --out docs                  # docs/RESULTS.md
+    python benchmarks/action_codebook.py --out docs                  # docs/results/action-space.md
     python benchmarks/action_codebook.py --seeds 2 --scale 0.2 --out /tmp/a  # a quick look
 """
 

@@ -33,7 +33,7 @@ per episode), ``data/compare_table.md`` (median [min-max] over seeds; cells over
 and ``figures/compare_<task>.png`` (learning curves, 95% t-intervals), and prints the
 table.
 
-    python benchmarks/compare.py --seeds 10 --first-seed 10 --jobs 2 --out docs   # the figures in docs/RESULTS.md
+    python benchmarks/compare.py --seeds 10 --first-seed 10 --jobs 2 --out docs   # docs/results/classic-control.md
     python benchmarks/compare.py --seeds 2 --scale 0.1 --out /tmp/c  # a quick look
 """
 

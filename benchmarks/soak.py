@@ -26,7 +26,7 @@ Matplotlib is imported only after the run, so it does not count in the memory fi
     python benchmarks/soak.py --steps 50000000 --every 1000000 --csv /tmp/s.csv --figure /tmp/s.png
 
 By default it writes docs/data/soak.csv and docs/figures/soak.png (``--no-files``: print only).
-MB here means 2**20 bytes. Results of a run are described in docs/SOAK.md.
+MB here means 2**20 bytes. Results of a run are described in docs/results/soak.md.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from avq.sweep import run_sweep
 
 
 def config(episodes: int, seeds: int, grid: dict) -> dict:
-    # The general Sarsa(λ) defaults (as measured in docs/RESULTS.md), not the maze rules avq takes on RobotMaze.
+    # The general Sarsa(λ) defaults (as measured in docs/results/general-defaults.md), not the maze rules avq takes on RobotMaze.
     general = {**avq.AGENTS["avq-sarsa"][1], "collision_split": False, "merge_pairs": "mutual", "max_cells": 10_000}
     params = {k: v for k, v in general.items() if k not in grid}
     return {"env": "avq/RobotMaze-v0", "agents": ["avq-sarsa"], "grid": grid, "params": params, "seeds": seeds,

@@ -4,7 +4,7 @@ The tuning mazes are lau2002 refined k = 1, 2, 4 and random_layout(side, side, 0
 sides 22 and 42; seeds 0-9. Every run learns in chunks of episodes (1, 2, 4, ... 50) until the greedy
 policy succeeds from 95% of the starts, budget 300,000 env steps. One row per run is appended to
 docs/data/tuning_plan.csv (that file was measured at commit 352376a, with the defaults of then:
-split_threshold 5, tol 1e-6; docs/RESULTS.md, "Planning over the partition").
+split_threshold 5, tol 1e-6; docs/results/planning.md).
 
     python scripts/tune_plan.py default,st10,tabular all 0,1,2,3,4,5,6,7,8,9
 """

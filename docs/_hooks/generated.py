@@ -1,0 +1,112 @@
+"""MkDocs hook: the reference pages that are generated from the code, not written by hand.
+
+A page asks for a generated section with an HTML comment on a line of its own:
+
+- ``<!-- avq:cli -->``: every command of ``avq``, read from the argparse parser ``avq.cli.build_parser()``;
+- ``<!-- avq:agents -->``: every agent name with its class, what it is, and its defaults, read from
+  ``avq.agents.registry.DEFAULTS`` (name -> {environment id or ``"*"`` -> parameters}),
+  ``avq.agents.registry.CLASSES`` and ``avq.agents.registry.SUMMARIES``.
+
+So these pages cannot drift from the code: change the parser or the table and the site follows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+from typing import Any
+
+MARKERS = ("<!-- avq:cli -->", "<!-- avq:agents -->")
+
+
+def _cell(text: str) -> str:
+    """Text safe inside a Markdown table cell."""
+    return text.replace("|", r"\|").replace("\n", " ")
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> dict[str, tuple[argparse.ArgumentParser, str]]:
+    """name -> (its parser, its one-line help), in the parser's order."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {choice.dest: choice.help for choice in action._choices_actions}
+            return {name: (sub, helps.get(name, "")) for name, sub in action.choices.items()}
+    return {}
+
+
+def _option_rows(parser: argparse.ArgumentParser) -> list[str]:
+    rows = ["| argument | what it does | default |", "|---|---|---|"]
+    for action in parser._actions:
+        if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue
+        if action.option_strings:
+            name = ", ".join(action.option_strings)
+            if action.nargs != 0:
+                name += " " + (action.metavar or action.dest.upper())
+        else:
+            name = action.metavar or action.dest
+        choices = f" (one of {', '.join(f'`{c}`' for c in action.choices)})" if action.choices else ""
+        default = "" if action.default in (None, False, argparse.SUPPRESS) else f"`{action.default}`"
+        rows.append(f"| `{_cell(name)}` | {_cell((action.help or '') + choices)} | {default} |")
+    return rows
+
+
+def cli_reference() -> str:
+    """Markdown for every command of ``avq``: usage, description, arguments."""
+    from avq.cli import build_parser
+
+    parser = build_parser()
+    parts = [f"```text\n{parser.format_usage().strip()}\n```", parser.description or ""]
+    for name, (sub, summary) in _subcommands(parser).items():
+        usage = sub.format_usage().strip().removeprefix("usage: ")
+        parts += [f"## `avq {name}` {{#avq-{name}}}", f"{summary[:1].upper() + summary[1:]}.",
+                  f"```text\n{usage}\n```", sub.description or "", "\n".join(_option_rows(sub))]
+    return "\n\n".join(p for p in parts if p) + "\n"
+
+
+def _value(value: Any) -> str:
+    return f"`{value!r}`"
+
+
+def agents_reference() -> str:
+    """Markdown for every agent name: class, summary, and a table of defaults, one column per entry."""
+    from avq.agents.registry import CLASSES, DEFAULTS, SUMMARIES, agent_class
+
+    overview = ["| name | class | per-environment entries |", "|---|---|---|"]
+    sections = []
+    for name, table in DEFAULTS.items():
+        classes = {key: agent_class(name, key) for key in table}
+        entries = [key for key in table if key != "*"]
+        overview.append(f"| [`{name}`](#{name}) | [`{CLASSES[name].__name__}`][avq.agents.{CLASSES[name].__name__}] | "
+                        + (", ".join(f"`{key}`" for key in entries) or "-") + " |")
+        signatures = {key: inspect.signature(cls.__init__).parameters for key, cls in classes.items()}
+        params = list(dict.fromkeys(p for entry in table.values() for p in entry))
+        head = ["everywhere (`\"*\"`)" if key == "*" else f"`{key}`" for key in table]
+        rows = [f"| parameter | {' | '.join(head)} |", "|---|" + "---|" * len(table)]
+        for param in params:
+            cells = []
+            for key, entry in table.items():
+                if param in entry:
+                    cells.append(_value(entry[param]))
+                elif param in signatures[key]:
+                    cells.append(_value(signatures[key][param].default) + " *(class)*")
+                else:
+                    cells.append("-")
+            rows.append(f"| `{param}` | " + " | ".join(cells) + " |")
+        if len(set(classes.values())) == 1:
+            which = f"Class: [`{CLASSES[name].__name__}`][avq.agents.{CLASSES[name].__name__}]."
+        else:
+            which = "Class: " + "; ".join(
+                f"[`{cls.__name__}`][avq.agents.{cls.__name__}] " + ("everywhere else" if key == "*" else f"on `{key}`")
+                for key, cls in sorted(classes.items(), key=lambda kv: kv[0] == "*")) + "."
+        sections.append(f"## `{name}` {{#{name}}}\n\n{SUMMARIES.get(name, '')}\n\n{which}\n\n" + "\n".join(rows))
+    return "\n".join(overview) + "\n\n" + "\n\n".join(sections) + "\n"
+
+
+GENERATORS = {"<!-- avq:cli -->": cli_reference, "<!-- avq:agents -->": agents_reference}
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    for marker, generate in GENERATORS.items():
+        if marker in markdown:
+            markdown = markdown.replace(marker, generate())
+    return markdown

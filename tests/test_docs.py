@@ -1,0 +1,138 @@
+"""The documentation site builds, its generated pages follow the code, and its tutorial runs.
+
+- ``mkdocs build --strict`` succeeds: every link and anchor between pages resolves, and every
+  cross-reference a docstring makes to avq's API is found (the griffe extension of ``docs/_hooks``
+  turns them into links, and a link to nothing fails a strict build);
+- the agent-defaults page shows every entry of ``avq.agents.registry.DEFAULTS`` and the command-line
+  page every command and option of ``avq.cli.build_parser()``;
+- every public name has a docstring, and no private module has a page;
+- every ```python block of the tutorial runs, in order, in one namespace (the README's: tests/test_readme.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import importlib
+import inspect
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+TUTORIAL = DOCS / "tutorial" / "index.md"
+#: The modules of the API reference: their ``__all__`` is the public API.
+PUBLIC_MODULES = ("avq", "avq.agents", "avq.agents.registry", "avq.agents.save_util", "avq.envs", "avq.evaluation",
+                  "avq.checks", "avq.sweep", "avq.plotting")
+
+
+def python_blocks(path: Path) -> list[tuple[int, str]]:
+    """The ```python blocks of a Markdown file, with the line each starts on."""
+    text = path.read_text(encoding="utf-8")
+    return [(text.count("\n", 0, m.start()) + 2, m.group(1))
+            for m in re.finditer(r"^```python\n(.*?)^```", text, re.M | re.S)]
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    """The site, built in strict mode into a temporary directory."""
+    pytest.importorskip("mkdocs")
+    out = tmp_path_factory.mktemp("site")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+           "NO_MKDOCS_2_WARNING": "1"}
+    result = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
+                             "-d", str(out)], capture_output=True, text=True, env=env, cwd=ROOT)
+    assert result.returncode == 0, result.stderr[-5000:]
+    return out
+
+
+def _text(page: Path) -> str:
+    return html.unescape(re.sub(r"<[^>]+>", "", page.read_text(encoding="utf-8")))
+
+
+def test_the_site_builds_strict_with_its_sections(site):
+    for page in ("index.html", "tutorial/index.html", "reference/agents.html", "reference/cli.html",
+                 "reference/file-formats.html", "reference/api/avq.html", "reference/api/agents.html",
+                 "explanation/paper.html", "explanation/architecture.html", "results/index.html"):
+        assert (site / page).is_file(), page
+    assert len(list((site / "results").glob("*.html"))) >= 5
+
+
+def test_the_api_reference_has_the_public_classes_and_no_private_module(site):
+    agents = (site / "reference" / "api" / "agents.html").read_text(encoding="utf-8")
+    import avq.agents
+
+    for name in avq.agents.__all__:
+        if inspect.isclass(getattr(avq.agents, name)):
+            assert f'id="avq.agents.{name}"' in agents, name
+    names = {p.name for p in (site / "reference" / "api").glob("*.html")}
+    assert not any(n.startswith("_") for n in names)
+
+
+def test_the_defaults_page_shows_every_entry_of_the_registry(site):
+    from avq.agents.registry import CLASSES, DEFAULTS
+
+    page = (site / "reference" / "agents.html").read_text(encoding="utf-8")
+    for name, table in DEFAULTS.items():
+        start = page.index(f'id="{name}"')
+        end = min([page.index(f'id="{other}"') for other in DEFAULTS if other != name
+                   and page.index(f'id="{other}"') > start] or [len(page)])
+        section = page[start:end]
+        assert CLASSES[name].__name__ in section, name
+        rows = {}
+        for row in re.findall(r"<tr>(.*?)</tr>", section, re.S):
+            cells = [html.unescape(re.sub(r"<[^>]+>", "", c)).strip() for c in re.findall(r"<td>(.*?)</td>", row, re.S)]
+            if cells:
+                rows[cells[0]] = cells[1:]
+        for column, entry in enumerate(table.values()):
+            for param, value in entry.items():
+                assert rows[param][column] == repr(value), (name, param)
+
+
+def test_the_cli_page_shows_every_command_and_option(site):
+    from avq.cli import build_parser
+
+    text = _text(site / "reference" / "cli.html")
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for command, parser in sub.choices.items():
+        assert f"avq {command}" in text, command
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            for flag in action.option_strings:
+                assert flag in text, (command, flag)
+
+
+@pytest.mark.parametrize("module", PUBLIC_MODULES)
+def test_every_public_name_has_a_docstring(module):
+    mod = importlib.import_module(module)
+    assert inspect.getdoc(mod), module
+    for name in getattr(mod, "__all__", []):
+        obj = getattr(mod, name)
+        if inspect.isclass(obj) or inspect.isfunction(obj) or inspect.ismodule(obj):
+            assert inspect.getdoc(obj), f"{module}.{name} has no docstring"
+
+
+def test_the_hand_written_pages_speak_of_the_project_only():
+    for page in DOCS.rglob("*.md"):
+        text = page.read_text(encoding="utf-8")
+        assert not re.search(r"\bSPEC\b|the issue", text), page
+
+
+def test_the_tutorial_runs(tmp_path, monkeypatch):
+    """Every block of the tutorial, in order, in one namespace (as a reader runs them)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    monkeypatch.chdir(tmp_path)  # the tutorial writes figures and a model file
+    blocks = python_blocks(TUTORIAL)
+    assert len(blocks) >= 4
+    namespace = {"__name__": "__tutorial__"}
+    for line, code in blocks:
+        exec(compile(code, f"{TUTORIAL.relative_to(ROOT)}:{line}", "exec"), namespace)
+    assert (tmp_path / "partition.png").stat().st_size > 0 and (tmp_path / "maze-agent.zip").is_file()
