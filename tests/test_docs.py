@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 TUTORIAL = DOCS / "tutorial" / "index.md"
 #: The modules of the API reference: their ``__all__`` is the public API.
-PUBLIC_MODULES = ("avq", "avq.agents", "avq.agents.registry", "avq.agents.save_util", "avq.envs", "avq.evaluation",
+PUBLIC_MODULES = ("avq", "avq.agents", "avq.agents.callbacks", "avq.agents.registry", "avq.agents.save_util", "avq.envs", "avq.evaluation",
                   "avq.checks", "avq.sweep", "avq.plotting")
 
 
@@ -67,15 +67,21 @@ def test_the_api_reference_has_the_public_classes_and_no_private_module(site):
     agents = (site / "reference" / "api" / "agents.html").read_text(encoding="utf-8")
     import avq.agents
 
+    import avq.agents.callbacks
+
+    callbacks = (site / "reference" / "api" / "callbacks.html").read_text(encoding="utf-8")
     for name in avq.agents.__all__:
         if inspect.isclass(getattr(avq.agents, name)):
-            assert f'id="avq.agents.{name}"' in agents, name
+            if getattr(avq.agents, name).__module__ == "avq.agents.callbacks":
+                assert f'id="avq.agents.callbacks.{name}"' in callbacks, name
+            else:
+                assert f'id="avq.agents.{name}"' in agents, name
     names = {p.name for p in (site / "reference" / "api").glob("*.html")}
     assert not any(n.startswith("_") for n in names)
 
 
 def test_the_defaults_page_shows_every_entry_of_the_registry(site):
-    from avq.agents.registry import CLASSES, DEFAULTS
+    from avq.agents.registry import DEFAULTS, ENTRIES
 
     page = (site / "reference" / "agents.html").read_text(encoding="utf-8")
     for name, table in DEFAULTS.items():
@@ -83,7 +89,8 @@ def test_the_defaults_page_shows_every_entry_of_the_registry(site):
         end = min([page.index(f'id="{other}"') for other in DEFAULTS if other != name
                    and page.index(f'id="{other}"') > start] or [len(page)])
         section = page[start:end]
-        assert CLASSES[name].__name__ in section, name
+        assert all(e.cls.__name__ in section and e.reason.split(":")[0] in html.unescape(section)
+                   for e in ENTRIES[name].values()), name
         rows = {}
         for row in re.findall(r"<tr>(.*?)</tr>", section, re.S):
             cells = [html.unescape(re.sub(r"<[^>]+>", "", c)).strip() for c in re.findall(r"<td>(.*?)</td>", row, re.S)]

@@ -3,9 +3,9 @@
 A page asks for a generated section with an HTML comment on a line of its own:
 
 - ``<!-- avq:cli -->``: every command of ``avq``, read from the argparse parser ``avq.cli.build_parser()``;
-- ``<!-- avq:agents -->``: every agent name with its class, what it is, and its defaults, read from
-  ``avq.agents.registry.DEFAULTS`` (name -> {environment id or ``"*"`` -> parameters}),
-  ``avq.agents.registry.CLASSES`` and ``avq.agents.registry.SUMMARIES``.
+- ``<!-- avq:agents -->``: every agent name with its class, what it is, and its defaults, read from the
+  data files ``src/avq/agents/defaults/<name>.yaml`` through ``avq.agents.registry`` (``ENTRIES``: name ->
+  {environment id or ``"*"`` -> the entry's class, parameters, reason and link}, and ``SUMMARIES``).
 
 So these pages cannot drift from the code: change the parser or the table and the site follows.
 """
@@ -68,37 +68,42 @@ def _value(value: Any) -> str:
 
 
 def agents_reference() -> str:
-    """Markdown for every agent name: class, summary, and a table of defaults, one column per entry."""
-    from avq.agents.registry import CLASSES, DEFAULTS, SUMMARIES, agent_class
+    """Markdown for every agent name: class, summary, and a table of defaults, one column per entry, with each
+    entry's reason and the link to the measurements that chose it."""
+    from avq.agents.registry import ENTRIES, SUMMARIES
 
     overview = ["| name | class | per-environment entries |", "|---|---|---|"]
     sections = []
-    for name, table in DEFAULTS.items():
-        classes = {key: agent_class(name, key) for key in table}
-        entries = [key for key in table if key != "*"]
-        overview.append(f"| [`{name}`](#{name}) | [`{CLASSES[name].__name__}`][avq.agents.{CLASSES[name].__name__}] | "
-                        + (", ".join(f"`{key}`" for key in entries) or "-") + " |")
-        signatures = {key: inspect.signature(cls.__init__).parameters for key, cls in classes.items()}
-        params = list(dict.fromkeys(p for entry in table.values() for p in entry))
-        head = ["everywhere (`\"*\"`)" if key == "*" else f"`{key}`" for key in table]
-        rows = [f"| parameter | {' | '.join(head)} |", "|---|" + "---|" * len(table)]
+    for name, entries in ENTRIES.items():
+        main = entries["*"].cls.__name__
+        others = [key for key in entries if key != "*"]
+        overview.append(f"| [`{name}`](#{name}) | [`{main}`][avq.agents.{main}] | "
+                        + (", ".join(f"`{key}`" for key in others) or "-") + " |")
+        signatures = {key: inspect.signature(e.cls.__init__).parameters for key, e in entries.items()}
+        params = list(dict.fromkeys(p for e in entries.values() for p in e.params))
+        head = ["everywhere (`\"*\"`)" if key == "*" else f"`{key}`" for key in entries]
+        rows = [f"| parameter | {' | '.join(head)} |", "|---|" + "---|" * len(entries)]
         for param in params:
             cells = []
-            for key, entry in table.items():
-                if param in entry:
-                    cells.append(_value(entry[param]))
+            for key, e in entries.items():
+                if param in e.params:
+                    cells.append(_value(e.params[param]))
                 elif param in signatures[key]:
                     cells.append(_value(signatures[key][param].default) + " *(class)*")
                 else:
                     cells.append("-")
             rows.append(f"| `{param}` | " + " | ".join(cells) + " |")
+        classes = {key: e.cls for key, e in entries.items()}
         if len(set(classes.values())) == 1:
-            which = f"Class: [`{CLASSES[name].__name__}`][avq.agents.{CLASSES[name].__name__}]."
+            which = f"Class: [`{main}`][avq.agents.{main}]."
         else:
             which = "Class: " + "; ".join(
                 f"[`{cls.__name__}`][avq.agents.{cls.__name__}] " + ("everywhere else" if key == "*" else f"on `{key}`")
                 for key, cls in sorted(classes.items(), key=lambda kv: kv[0] == "*")) + "."
-        sections.append(f"## `{name}` {{#{name}}}\n\n{SUMMARIES.get(name, '')}\n\n{which}\n\n" + "\n".join(rows))
+        why = "\n".join(f"- {'everywhere' if key == '*' else f'`{key}`'}: {_cell(e.reason)} "
+                        f"([why](../{e.results}))" for key, e in entries.items())
+        sections.append(f"## `{name}` {{#{name}}}\n\n{SUMMARIES.get(name, '')}\n\n{which} "
+                        f"Data file: `src/avq/agents/defaults/{name}.yaml`.\n\n{why}\n\n" + "\n".join(rows))
     return "\n".join(overview) + "\n\n" + "\n\n".join(sections) + "\n"
 
 
