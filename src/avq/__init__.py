@@ -11,7 +11,13 @@ Importing avq registers its Gymnasium environments (``avq/GridMaze-v0``, ``avq/R
 - The checks every agent passes: `avq.checks`.
 """
 
-from avq._version import __version__
+# First: key Numba's on-disk cache by a hash of avq's sources before any compiled function is defined
+# (avq._compile_cache says why; every ``import avq.x`` runs this file first).
+from avq import _compile_cache
+
+_compile_cache.configure()
+
+from avq._version import __version__  # noqa: E402
 from avq import envs  # noqa: F401  (registers the environments)
 from avq.agents import (AGENTS, ActionCodebookSarsa, AVQSarsa, BaseAgent, CheckpointCallback, GridSarsa, PlanningAVQ,
                         PrioritizedSweeping, TabularSarsa, TileSarsa, load, make_agent)
