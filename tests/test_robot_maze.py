@@ -13,7 +13,8 @@ from gymnasium.utils.env_checker import check_env
 
 import avq  # registers the environments
 from avq.envs import RobotMaze, register_envs
-from avq.envs.robot_maze import EAST, NORTH, SOUTH, WEST, sonar_directions
+from avq.envs.robot_geometry import sonar_directions
+from avq.envs.robot_maze import EAST, NORTH, SOUTH, WEST
 
 # A small hand-made layout: W = 4, H = 3, so the maze is [-0.5, 3.5] x [-0.5, 2.5].
 # The wall square is (1, 1) = [0.5, 1.5] x [0.5, 1.5]; the goal square is

@@ -12,7 +12,8 @@ from avq._validate import check_int
 from avq.agents.base import BaseAgent
 from avq.agents.save_util import check_env_fits, env_signature
 from avq.envs.grid_maze import GridMaze, grid_move
-from avq.envs.robot_maze import RobotDynamics, RobotMaze, robot_move, sonar_ranges
+from avq.envs.robot_geometry import RobotDynamics, robot_move, sonar_ranges
+from avq.envs.robot_maze import RobotMaze
 
 __all__ = ["evaluate_maze", "evaluate_policy", "success_rule", "SUCCESS_RULES"]
 

@@ -4,7 +4,7 @@
 with noise-free sonar, under Gymnasium's standard wrappers (:func:`avq.envs.compiled.compiled_maze`).
 Each agent family writes its own loop (``avq_sarsa/fused.py``, ``plan/fused.py``,
 ``baselines/fused.py``); they read the maze only through its public, frozen description
-(:class:`~avq.envs.grid_maze.GridDynamics`, :class:`~avq.envs.robot_maze.RobotDynamics`), the
+(:class:`~avq.envs.grid_maze.GridDynamics`, :class:`~avq.envs.robot_geometry.RobotDynamics`), the
 arguments :func:`maze_arguments` makes of it, and step it with :func:`maze_start`,
 :func:`maze_move` and :func:`maze_observation` here. They call the very kernels of the generic
 path, draw from the same generators in the same order (the agent's for its decisions, the
@@ -27,7 +27,7 @@ from numba import njit
 from avq._numba import borrowed
 from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
-from avq.envs.robot_maze import random_start, robot_move, sonar_ranges
+from avq.envs.robot_geometry import random_start, robot_move, sonar_ranges
 
 __all__ = ["Maze", "plan", "maze_arguments", "borrowed_maze", "drive", "maze_start", "maze_move", "maze_observation", "DONE", "NEED_CAPACITY",
            "RECORDS_FULL", "N_R"]

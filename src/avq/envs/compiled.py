@@ -3,7 +3,7 @@
 A loop that runs a maze's dynamics itself (avq's fused training, the greedy walks of
 :func:`avq.evaluate_maze`) reads the maze only through this module and the maze's
 public :attr:`~avq.envs.GridMaze.dynamics` (a frozen :class:`~avq.envs.grid_maze.GridDynamics`
-or :class:`~avq.envs.robot_maze.RobotDynamics`). :func:`compiled_maze` unwraps an
+or :class:`~avq.envs.robot_geometry.RobotDynamics`). :func:`compiled_maze` unwraps an
 environment made by ``gymnasium.make`` and gives a :class:`CompiledMaze`: the dynamics,
 the step limit in force, the generator that draws the starts, and the episode's state
 (position and elapsed steps) to read before such a loop runs and to write back after it,
@@ -23,7 +23,8 @@ import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
 from avq.envs.grid_maze import GridDynamics, GridMaze
-from avq.envs.robot_maze import RobotDynamics, RobotMaze
+from avq.envs.robot_geometry import RobotDynamics
+from avq.envs.robot_maze import RobotMaze
 
 __all__ = ["CompiledMaze", "compiled_maze", "NO_LIMIT"]
 

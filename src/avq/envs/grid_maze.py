@@ -10,7 +10,8 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-from avq.envs.layouts import COLOURS, Layout, LayoutSpec, check_start, layout_image, layout_text, load_layout
+from avq.envs.layouts import Layout, LayoutSpec, check_start, layout_text, load_layout
+from avq.envs.render import grid_frame
 
 __all__ = ["GridMaze", "GridDynamics", "grid_move", "slipped", "NORTH", "EAST", "SOUTH", "WEST"]
 
@@ -259,12 +260,4 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         return layout_text(self.layout, self.position)
 
     def _render_rgb(self, cell: int = 16) -> np.ndarray:
-        img = layout_image(self.layout, cell)
-        # The robot: a disc in its cell.
-        x, y = self.position
-        yy, xx = np.mgrid[0:cell, 0:cell]
-        r = cell / 2 - 0.5
-        disc = (xx - r) ** 2 + (yy - r) ** 2 <= (0.75 * r) ** 2
-        block = img[y * cell:(y + 1) * cell, x * cell:(x + 1) * cell]
-        block[disc] = COLOURS["robot"]
-        return img
+        return grid_frame(self.layout, self.position, cell)

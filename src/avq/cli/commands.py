@@ -1,6 +1,9 @@
-"""The ``avq`` command line.
+"""What the ``avq`` subcommands do once their arguments are parsed (:mod:`avq.cli.parser` parses them).
 
-Every user mistake ends with a one-line message on stderr and exit code 2.
+One function per subcommand, ``cmd_NAME(args) -> exit code``, and what they share: reading
+``--config`` and ``KEY=VALUE`` options, the summary lines, and what to say when a run stops
+(Ctrl-C, a full disk) so that it can be continued. A user's mistake raises :class:`UsageError`,
+which :func:`avq.cli.main` reports in one line with exit code 2.
 """
 
 from __future__ import annotations
@@ -9,46 +12,14 @@ import argparse
 import os
 import shlex
 import sys
-from typing import Sequence
 
 from avq._io import WriteError
 
-__all__ = ["UsageError", "key_values", "main"]
+__all__ = ["UsageError", "key_values", "cmd_reproduce", "cmd_train", "cmd_sweep", "cmd_evaluate"]
 
 
 class UsageError(Exception):
     """A mistake of the user's, reported in one line with exit code 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, no usage dump
-        raise UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
-
-
-def _int_at_least(name: str, low: int):
-    """An argparse type: an integer >= ``low``, with a message naming the option."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer, not {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"{name} must be >= {low}, not {value}")
-        return value
-
-    return parse
-
-
-def _positive_int(name: str):
-    return _int_at_least(name, 1)
-
-
-def _nonnegative_int(name: str):
-    return _int_at_least(name, 0)
-
-
-_NO_PROGRESS_HELP = "hide the progress bar (hidden anyway when stderr is not a terminal)"
 
 
 def _progress(args: argparse.Namespace) -> bool:
@@ -56,7 +27,8 @@ def _progress(args: argparse.Namespace) -> bool:
     return not args.no_progress and sys.stderr.isatty()
 
 
-def _cmd_reproduce(args: argparse.Namespace) -> int:
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    """``avq reproduce``: the paper's maze experiment."""
     from avq.envs.layouts import load_layout
     from avq.reproduce import reproduce
 
@@ -159,7 +131,8 @@ def _print_train_summary(summary: dict) -> None:
     )
 
 
-def _cmd_train(args: argparse.Namespace) -> int:
+def cmd_train(args: argparse.Namespace) -> int:
+    """``avq train``: a new run, or ``--resume`` of a stopped one; prints the run's summary."""
     from avq.runs import resume_train, train
 
     if args.resume:
@@ -272,7 +245,8 @@ def _stopped_by(exc: WriteError, run_dir: str) -> Exception:
     return UsageError(f"{exc}; {_how_to_continue(run_dir)}")
 
 
-def _cmd_evaluate(args: argparse.Namespace) -> int:
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """``avq evaluate``: the greedy policy of a run or model file, as a line or ``--json``."""
     import json
 
     from avq.runs import evaluate_run
@@ -301,7 +275,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_sweep(args: argparse.Namespace) -> int:
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """``avq sweep CONFIG --out DIR`` runs a sweep (exit code 1 if a trial failed); ``avq sweep report DIR``
+    ranks one."""
     from avq.sweep import SweepInterrupted, report, run_sweep
 
     if args.target[0] == "report":
@@ -341,127 +317,3 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     for r in failed[:5]:
         print(f"  failed: {r['trial']}: {r['error']}", file=sys.stderr)
     return 1 if failed else 0
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="avq", description="Reinforcement learning with adaptive vector quantization.")
-    from avq import __version__
-
-    parser.add_argument("--version", action="version", version=f"avq {__version__}")
-    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
-    rep = sub.add_parser(
-        "reproduce",
-        help="reproduce the paper's maze experiment",
-        description="Train each agent for each seed on the maze, print a table, and write into --out: "
-        "summary.json (the table's numbers), partition.png (the cells of the headline agent, avq-paper if it "
-        "ran, on its best and its worst seed), partition-NAME.png (those of each further AVQ agent, first seed), "
-        "partition.gif (the headline agent's cells as it learns, on its best seed; not with --no-animation), "
-        "learning_curve.png, and models/NAME__seedS.zip "
-        "(every trained agent; 'avq evaluate' reads them). The files are written beside --out first and "
-        "replace it as a whole when all are done: files of an earlier reproduction that this run does not "
-        "write are removed, and a run that stops early leaves --out as it was. A directory holding anything "
-        "but an earlier reproduction is refused.",
-    )
-    rep.add_argument("--layout", default="lau2002", help="preset name or layout file (default lau2002)")
-    rep.add_argument("--seeds", type=_positive_int("--seeds"), default=10, help="number of seeds 0..N-1 (default 10)")
-    rep.add_argument("--trials", type=_positive_int("--trials"), default=1000, help="trials per run (default 1000)")
-    rep.add_argument("--agents", default="avq-paper,avq,tabular", help="comma-separated agent names")
-    rep.add_argument("--start", choices=["random", "fixed"], default="random", help="start positions (default random)")
-    rep.add_argument("--out", default="reproduce-out", help="output directory (default reproduce-out)")
-    rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,
-                     help="parallel processes (default 1: the compiled loops make one process fastest here)")
-    rep.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
-    rep.add_argument("--no-animation", action="store_true",
-                     help="do not write partition.gif, the animation of the headline agent's cells and greedy "
-                     "actions as it learns (on its best seed; a few seconds)")
-    rep.set_defaults(func=_cmd_reproduce)
-
-    tr = sub.add_parser(
-        "train",
-        help="train one agent on any registered Gymnasium environment",
-        description="Train an agent and write config.yml, progress.csv, checkpoint.zip, model.zip and summary.json "
-        "into --out. A stopped run continues exactly with --resume DIR. Another avq process writing into --out "
-        "makes it refuse.",
-    )
-    tr.add_argument("--env", help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0")
-    from avq.agents.registry import AGENTS
-
-    tr.add_argument("--agent", help=f"agent name (default avq): {', '.join(AGENTS)}")
-    budget = tr.add_mutually_exclusive_group()
-    budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes to train (default 500)")
-    budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="environment steps to train")
-    tr.add_argument("--seed", type=_nonnegative_int("--seed"), help="seed (default 0)")
-    tr.add_argument("--out", help="run directory (default runs/{env}__{agent}__{seed}__{time})")
-    tr.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter (repeatable)")
-    tr.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make (repeatable)")
-    tr.add_argument("--config", help="YAML file with env, env_kwargs, agent, params, seed, episodes|timesteps, out")
-    tr.add_argument("--checkpoint-every", type=_positive_int("--checkpoint-every"), metavar="N",
-                    help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
-    tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
-    tr.add_argument("--animate", action="store_true",
-                    help="also write DIR/partition.gif: the cells and their greedy actions as they learn, up to "
-                    "about 100 frames evenly spaced over the episodes (avq/GridMaze-v0 and avq/RobotMaze-v0; "
-                    "agents with cells)")
-    tr.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
-    tr.set_defaults(func=_cmd_train)
-
-    sw = sub.add_parser(
-        "sweep",
-        help="run a grid of configurations x seeds, locally or on a Ray or Dask cluster",
-        description="avq sweep CONFIG.yml --out DIR runs every trial not yet finished in DIR and writes "
-        "DIR/results.csv and DIR/curves.png (exit code 1 if a trial failed); the same command continues a "
-        "stopped sweep. avq sweep report DIR ranks the configurations.",
-    )
-    sw.add_argument("target", nargs="+", metavar="CONFIG.yml|report DIR",
-                    help="the sweep's YAML config, or 'report' and a sweep directory")
-    sw.add_argument("--out", help="the sweep's directory")
-    sw.add_argument("--backend", choices=["local", "ray", "dask"], default="local",
-                    help="local processes (default), a Ray cluster or a Dask cluster")
-    sw.add_argument("--address", help="cluster address (ray: as for ray.init; dask: the scheduler); "
-                    "without one a local cluster is started")
-    sw.add_argument("--jobs", type=_positive_int("--jobs"), help="parallel workers (default: CPU count)")
-    sw.add_argument("--metric", help="report: the metric to rank by (default: the config's, else final_return)")
-    sw.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
-    sw.set_defaults(func=_cmd_sweep)
-
-    ev = sub.add_parser("evaluate", help="evaluate a trained run's greedy policy",
-                        description="Load DIR/model.zip (or a model file) and report the mean and spread of the "
-                        "return. An episode that the environment does not end within --max-steps steps is cut "
-                        "there, and the report says how many were (capped in --json).")
-    ev.add_argument("run_dir", metavar="DIR|MODEL.zip",
-                    help="a directory written by 'avq train', or a model file written by agent.save "
-                    "(such as avq reproduce's models/NAME__seedS.zip)")
-    ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
-    ev.add_argument("--seed", type=_nonnegative_int("--seed"), default=0,
-                    help="seed of the evaluation episodes (default 0)")
-    ev.add_argument("--max-steps", type=_positive_int("--max-steps"), default=100_000, metavar="N",
-                    help="cut an episode the environment has not ended after N steps (default 100000)")
-    ev.add_argument("--json", action="store_true", help="print JSON")
-    ev.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
-    ev.set_defaults(func=_cmd_evaluate)
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-        if not getattr(args, "command", None):
-            parser.print_help()
-            return 2
-        return int(args.func(args) or 0)
-    except UsageError as exc:
-        print(f"avq: error: {exc}", file=sys.stderr)
-        return 2
-    except (ValueError, OSError) as exc:  # bad values, and paths that cannot be read or written
-        if os.environ.get("AVQ_DEBUG"):
-            raise
-        print(f"avq: error: {str(exc).splitlines()[0]}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("avq: interrupted", file=sys.stderr)
-        return 130
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,7 @@
+"""``python -m avq.cli``: the ``avq`` command."""
+
+import sys
+
+from avq.cli import main
+
+sys.exit(main())
