@@ -94,7 +94,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
 
     The greedy policy is the agent's own decision rule with exploration off: for
     AVQ agents the best action of the current cell, repeated while the cell stays
-    the same (SPEC §2), which is the same as asking :meth:`avq.agents.BaseAgent.predict` with
+    the same (docs/explanation/paper.md#acting), which is the same as asking :meth:`avq.agents.BaseAgent.predict` with
     ``deterministic=True`` at every step because a frozen cell's best action does
     not change.
 

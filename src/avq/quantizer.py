@@ -1,6 +1,6 @@
 """The codebook: a nearest-neighbour vector quantizer that can grow and merge.
 
-Geometry only (SPEC §1, §3, §4). The codebook knows its vectors, the metric,
+Geometry only (docs/explanation/paper.md#setting, #growing, #merging). The codebook knows its vectors, the metric,
 nearest-vector queries, appends and pairwise merges. It holds no values: every
 operation that changes indices hands back the index mapping, and the agent
 applies that mapping to its own arrays.
@@ -11,7 +11,7 @@ searches), which the agents' kernels call inside their compiled loops; and :clas
 same functions behind a Python object, for queries and for tests.
 
 The metric is the Euclidean distance after dividing each dimension by its
-scale ``s`` (SPEC §1)::
+scale ``s`` (docs/explanation/paper.md#setting)::
 
     dist(x, y) = || (x - y) / s ||
 """
@@ -121,7 +121,7 @@ def neighbours_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray):
 @njit(cache=True, nogil=True)
 def mutual_nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray,
                                 strict: bool = True) -> np.ndarray:
-    """Pairs ``(i, j)``, ``i < j``, each the other's unique nearest vector (SPEC §4, Fig. 2's strict <).
+    """Pairs ``(i, j)``, ``i < j``, each the other's unique nearest vector (docs/explanation/paper.md#merging, Fig. 2's strict <).
 
     With ``strict=False`` a tie for the nearest goes to the lowest index instead of
     blocking the pair (beyond the paper: on integer grids, ties are common).
@@ -308,7 +308,7 @@ class Codebook:
         return neighbours_kernel(self._data, p, self.inv_scale)
 
     def mutual_nearest_pairs(self) -> np.ndarray:
-        """Pairs ``(i, j)``, ``i < j``, that are each other's unique nearest vector (SPEC §4).
+        """Pairs ``(i, j)``, ``i < j``, that are each other's unique nearest vector (docs/explanation/paper.md#merging).
 
         "Unique" follows Fig. 2 of the paper: ``||y_i - y_j|| < ||y_i - y_h||`` for every
         other ``h``, strictly, and the same from ``j``. A vector with two equally near

@@ -2,7 +2,8 @@
 
 One place for each: the agents' kernels (:mod:`avq.agents.avq_sarsa.kernels`,
 :mod:`avq.agents.plan.kernels`) call these and apply the decisions to the codebook, the values
-and the model. The first group is the paper's (SPEC §2-§4), to be read against it line by line;
+and the model. The first group is the paper's, to be read line by line against
+its sections Acting, Growing and Merging in docs/explanation/paper.md;
 the second holds the rules beyond the paper, each named after the agent parameter that switches
 it on. The functions take numbers (and value rows), never an agent's state arrays, so that each
 can be tested with a situation written out by hand.
@@ -26,20 +27,20 @@ CHI, APPEND, KEEP = 0, 1, 2
 
 @njit(cache=True, inline="always")
 def decision_goes_on(same_cell: bool, collision: bool, done: bool) -> bool:
-    """SPEC §2: a decision is repeated while the observation stays in its cell, without a collision, and
+    """The paper (Acting, docs/explanation/paper.md#acting): a decision is repeated while the observation stays in its cell, without a collision, and
     the episode goes on; otherwise the aggregate transition ends."""
     return same_cell and not (collision or done)
 
 
 @njit(cache=True, inline="always")
 def may_append(dist_to_nearest: float, d_min: float) -> bool:
-    """SPEC §3: a new vector is never appended within ``d_min`` of an existing one."""
+    """The paper (Growing, docs/explanation/paper.md#growing): a new vector is never appended within ``d_min`` of an existing one."""
     return dist_to_nearest > d_min
 
 
 @njit(cache=True, inline="always")
 def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> str:
-    """SPEC §3, on a collision at ``x`` while in cell ``i``.
+    """The paper (Growing, docs/explanation/paper.md#growing), on a collision at ``x`` while in cell ``i``.
 
     Args:
         dist_to_own: ``||y_i - x||`` (scaled), the current cell's vector to ``x``.
@@ -62,7 +63,7 @@ def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> 
 
 @njit(cache=True)
 def mean_square_difference(q_i: np.ndarray, q_j: np.ndarray) -> float:
-    """SPEC §4, criterion 2: ``(1/m) * sum_a (q_i[a] - q_j[a])**2``."""
+    """The paper (Merging, criterion 2, docs/explanation/paper.md#merging): ``(1/m) * sum_a (q_i[a] - q_j[a])**2``."""
     m = q_i.shape[0]
     total = 0.0
     for a in range(m):
@@ -73,13 +74,13 @@ def mean_square_difference(q_i: np.ndarray, q_j: np.ndarray) -> float:
 
 @njit(cache=True, inline="always")
 def similar_profiles(q_i: np.ndarray, q_j: np.ndarray, rho: float) -> bool:
-    """SPEC §4, criterion 2: two profiles are similar when their mean square difference is below ``rho``."""
+    """The paper (Merging, criterion 2, docs/explanation/paper.md#merging): two profiles are similar when their mean square difference is below ``rho``."""
     return mean_square_difference(q_i, q_j) < rho
 
 
 @njit(cache=True, inline="always")
 def merge_profiles(q_i: np.ndarray, q_j: np.ndarray, out: np.ndarray) -> None:
-    """SPEC §4: the merged cell's profile ``(Q[i] + Q[j]) / 2`` into ``out`` (which may be ``q_i``)."""
+    """The paper (Merging, docs/explanation/paper.md#merging): the merged cell's profile ``(Q[i] + Q[j]) / 2`` into ``out`` (which may be ``q_i``)."""
     for a in range(q_i.shape[0]):
         out[a] = (q_i[a] + q_j[a]) / 2.0
 
@@ -102,14 +103,14 @@ def reward_jump(r: float, prev_r: float, steps_in_episode: int, r_trigger: float
 
 @njit(cache=True, inline="always")
 def value_jump(delta: float, v_trigger: float) -> bool:
-    """``value_trigger`` (the paper's optional trigger, SPEC §3): grow where the TD error reaches
+    """``value_trigger`` (the paper's optional trigger, docs/explanation/paper.md#growing): grow where the TD error reaches
     ``v_trigger`` in size (0: off)."""
     return v_trigger > 0.0 and abs(delta) >= v_trigger
 
 
 @njit(cache=True, inline="always")
 def collision_split(dist_to_own: float, a_is_greedy: bool, q_ia: float, chi: float) -> bool:
-    """``collision_split``: where SPEC §3 would set ``Q[i, a] = chi`` for the whole cell, split ``x`` off
+    """``collision_split``: where the paper's collision rule (docs/explanation/paper.md#growing) would set ``Q[i, a] = chi`` for the whole cell, split ``x`` off
     instead when ``a`` is still the cell's greedy action (worth more than ``chi``) and ``x`` is not the
     cell's own vector: the wall is in one part of the cell, not all of it."""
     return dist_to_own > 0.0 and a_is_greedy and q_ia > chi

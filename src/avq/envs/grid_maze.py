@@ -1,4 +1,4 @@
-"""The grid maze of Lau, Mak & Lee (2002), SPEC §6, as a Gymnasium environment."""
+"""The grid maze of Lau, Mak & Lee (2002), docs/explanation/paper.md#the-maze, as a Gymnasium environment."""
 
 from __future__ import annotations
 
@@ -102,7 +102,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
     """A robot moves on the free positions of a grid maze towards a goal.
 
     ## Description
-    The maze of the paper (SPEC §6): a grid of free positions and barriers. The
+    The maze of the paper (docs/explanation/paper.md#the-maze): a grid of free positions and barriers. The
     robot's state is its position ``(x, y)``; ``x`` is the column and ``y`` the
     row, both from 0 at the layout's top-left corner. Moving off the grid is a
     bump, so the layout's border need not be walls.

@@ -2,7 +2,7 @@
 
 A layout is a list of equally long strings: ``#`` wall, ``.`` free, ``S`` start,
 ``G`` goal. Coordinates are ``(x, y)`` with ``x`` the column and ``y`` the row,
-both from 0 at the top-left corner (SPEC §6).
+both from 0 at the top-left corner (docs/explanation/paper.md#the-maze).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ COLOURS = {
     "robot": (200, 50, 50),
 }
 
-#: Preset layouts. ``lau2002`` reconstructs the paper's maze (SPEC §6).
+#: Preset layouts. ``lau2002`` reconstructs the paper's maze (docs/explanation/paper.md#the-maze).
 MAPS: dict[str, list[str]] = {
     "lau2002": [
         "##############",

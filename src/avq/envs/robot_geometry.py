@@ -1,4 +1,4 @@
-"""The robot maze's geometry, compiled: moves, collisions, sonar ranges, random starts (SPEC §6).
+"""The robot maze's geometry, compiled: moves, collisions, sonar ranges, random starts (docs/explanation/paper.md#the-maze).
 
 :class:`~avq.envs.robot_maze.RobotMaze` keeps the state and calls these functions; avq's
 compiled loops (fused training, the greedy walks of :func:`avq.evaluate_maze`) call the same
@@ -31,7 +31,7 @@ from avq.envs.grid_maze import BUMP_REWARD, GOAL_REWARD, MOVE_REWARD
 __all__ = ["RobotDynamics", "robot_move", "random_start", "sonar_ranges", "sonar_directions", "padded_walls",
            "disc_collides", "in_goal", "cast_ray", "lattice_distances", "N_SONARS", "EPS"]
 
-#: Number of sonar beams (the Sensus 300 ring of the Nomad 200, SPEC §6).
+#: Number of sonar beams (the Sensus 300 ring of the Nomad 200, docs/explanation/paper.md#the-maze).
 N_SONARS = 16
 
 #: Rounding tolerance of every geometric comparison (touching, goal square).

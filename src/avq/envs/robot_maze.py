@@ -1,4 +1,4 @@
-"""The paper's robot in a continuous maze (SPEC §6) as a Gymnasium environment: a disc with a ring of 16 sonars.
+"""The paper's robot in a continuous maze (docs/explanation/paper.md#the-maze) as a Gymnasium environment: a disc with a ring of 16 sonars.
 
 :class:`RobotMaze` keeps the state, checks its arguments and answers the Gymnasium API; what a
 move, a collision or a sonar range is lives in :mod:`avq.envs.robot_geometry`, compiled, where
@@ -42,7 +42,7 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
     """A disc-shaped robot with 16 sonars moves through a continuous maze towards a goal.
 
     ## Description
-    The paper's robot (SPEC §6, a Nomad 200 with a ring of 16 sonars) in a
+    The paper's robot (docs/explanation/paper.md#the-maze, a Nomad 200 with a ring of 16 sonars) in a
     continuous version of GridMaze's layouts. Each layout character is a unit
     square centred at GridMaze's integer position ``(x, y)`` (column, row; ``y``
     grows downwards): ``#`` squares are obstacles, and the maze is the rectangle

@@ -1,9 +1,9 @@
 """AVQ on the action space: Sarsa(λ) over an adaptive codebook of continuous actions.
 
-The paper's last remark (SPEC §8) proposes vector quantization of the action
+The paper's last remark (docs/explanation/paper.md#future-work) proposes vector quantization of the action
 space. Here the *states* are tile-coded as in :class:`avq.agents.tiles.TileSarsa`
 and the *actions* are a codebook of vectors in the environment's ``Box`` action
-space, grown and merged by rules transposed from SPEC §3 and §4:
+space, grown and merged by rules transposed from docs/explanation/paper.md#growing and #merging:
 
 - **Growth** (the analogue of appending a vector): where the policy spends its
   decisions, split. The action chosen greedily most often over the recently
@@ -11,7 +11,7 @@ space, grown and merged by rules transposed from SPEC §3 and §4:
   between them, ``(y_g + y_j) / 2``, whose value column starts at the mean of
   theirs. Never within ``d_min`` of an existing vector, never beyond
   ``max_actions``.
-- **Merging** (SPEC §4 with states and actions swapped): two action vectors
+- **Merging** (docs/explanation/paper.md#merging with states and actions swapped): two action vectors
   that are each other's nearest and whose value columns, over the recently
   visited states, differ by a mean square below ``rho`` become one: vector and
   weights averaged, the later slots move down.
@@ -109,7 +109,7 @@ def plan_merges(points: np.ndarray, q: np.ndarray, rho: float, min_actions: int 
 
     A pair merges when its vectors are each other's nearest (lowest index on ties)
     and the mean square difference of their value columns over the ``N`` states,
-    ``mean_s (q[s, i] - q[s, j]) ** 2``, is below ``rho`` (SPEC §4 with the roles of
+    ``mean_s (q[s, i] - q[s, j]) ** 2``, is below ``rho`` (docs/explanation/paper.md#merging with the roles of
     states and actions swapped). Mutual nearest pairs are disjoint. Merging stops
     before fewer than ``min_actions`` vectors would be left.
     """
