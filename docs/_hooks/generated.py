@@ -13,10 +13,12 @@ So these pages cannot drift from the code: change the parser or the table and th
 from __future__ import annotations
 
 import argparse
+import ast
 import inspect
+from pathlib import Path
 from typing import Any
 
-MARKERS = ("<!-- avq:cli -->", "<!-- avq:agents -->")
+MARKERS = ("<!-- avq:cli -->", "<!-- avq:agents -->", "<!-- avq:layout -->")
 
 
 def _cell(text: str) -> str:
@@ -107,7 +109,71 @@ def agents_reference() -> str:
     return "\n".join(overview) + "\n\n" + "\n\n".join(sections) + "\n"
 
 
-GENERATORS = {"<!-- avq:cli -->": cli_reference, "<!-- avq:agents -->": agents_reference}
+def _package_root() -> Path:
+    import avq
+
+    return Path(avq.__file__).parent
+
+
+def _first_line(path: Path) -> str:
+    """The first sentence of a module's docstring (a package: of its ``__init__.py``)."""
+    source = (path / "__init__.py" if path.is_dir() else path).read_text(encoding="utf-8")
+    doc = ast.get_docstring(ast.parse(source)) or ""
+    first = " ".join(doc.split("\n\n")[0].split())
+    return first.split(". ")[0].rstrip(".")
+
+
+def _room(module: str) -> str:
+    """The room of a module: ``avq.agents.plan.model`` -> ``agents/plan``, ``avq.rules`` -> ``rules``."""
+    parts = module.split(".")[1:]
+    if parts[:1] == ["agents"] and len(parts) > 2:
+        return "/".join(parts[:2])
+    return parts[0] if parts else "avq"
+
+
+def _imports(root: Path) -> dict[str, set[str]]:
+    """room -> the rooms it imports (module-level imports of ``avq`` modules only)."""
+    edges: dict[str, set[str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        module = "avq." + ".".join(path.relative_to(root).with_suffix("").parts).removesuffix(".__init__")
+        room = _room(module)
+        if room == "avq":
+            continue
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            names = ([node.module] if isinstance(node, ast.ImportFrom) and node.module else
+                     [a.name for a in node.names] if isinstance(node, ast.Import) else [])
+            for name in names:
+                if name.startswith("avq.") and _room(name) not in (room, "avq"):
+                    edges.setdefault(room, set()).add(_room(name))
+    return edges
+
+
+def layout_reference() -> str:
+    """The package's layout, read from the code: every folder and module with its line count and the first
+    sentence of its docstring, and which room imports which."""
+    root = _package_root()
+    lines = ["```text"]
+    for path in sorted(root.rglob("*"), key=lambda p: p.relative_to(root).parts):
+        rel = path.relative_to(root)
+        if "__pycache__" in rel.parts or path.name == "__init__.py" or not (path.is_dir() or path.suffix == ".py"):
+            continue
+        if path.is_dir() and not (path / "__init__.py").exists():
+            continue
+        depth = len(rel.parts) - 1
+        name = path.name + ("/" if path.is_dir() else "")
+        size = "" if path.is_dir() else f"{len(path.read_text(encoding='utf-8').splitlines()):4d}"
+        lines.append(f"{'    ' * depth}{name:<{28 - 4 * depth}} {size:>4}  {_first_line(path)}")
+    lines.append("```")
+    edges = _imports(root)
+    table = ["| room | imports |", "|---|---|"]
+    for room in sorted(edges):
+        table.append(f"| `{room}` | " + ", ".join(f"`{r}`" for r in sorted(edges[room])) + " |")
+    return "\n".join(lines) + "\n\nWho imports whom (a room is a top-level module, or a folder of the agents):\n\n" + \
+        "\n".join(table) + "\n"
+
+
+GENERATORS = {"<!-- avq:cli -->": cli_reference, "<!-- avq:agents -->": agents_reference,
+              "<!-- avq:layout -->": layout_reference}
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
