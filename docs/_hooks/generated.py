@@ -2,7 +2,7 @@
 
 A page asks for a generated section with an HTML comment on a line of its own:
 
-- ``<!-- avq:cli -->``: every command of ``avq``, read from the argparse parser ``avq.cli.build_parser()``;
+- ``<!-- avq:cli -->``: every command of ``avq`` with its ``--help``, from the parser ``avq.cli.build_parser()``;
 - ``<!-- avq:agents -->``: every agent name with its class, what it is, and its defaults, read from the
   data files ``src/avq/agents/defaults/<name>.yaml`` through ``avq.agents.registry`` (``ENTRIES``: name ->
   {environment id or ``"*"`` -> the entry's class, parameters, reason and link}, and ``SUMMARIES``).
@@ -12,7 +12,6 @@ So these pages cannot drift from the code: change the parser or the table and th
 
 from __future__ import annotations
 
-import argparse
 import ast
 import inspect
 from pathlib import Path
@@ -26,43 +25,16 @@ def _cell(text: str) -> str:
     return text.replace("|", r"\|").replace("\n", " ")
 
 
-def _subcommands(parser: argparse.ArgumentParser) -> dict[str, tuple[argparse.ArgumentParser, str]]:
-    """name -> (its parser, its one-line help), in the parser's order."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            helps = {choice.dest: choice.help for choice in action._choices_actions}
-            return {name: (sub, helps.get(name, "")) for name, sub in action.choices.items()}
-    return {}
-
-
-def _option_rows(parser: argparse.ArgumentParser) -> list[str]:
-    rows = ["| argument | what it does | default |", "|---|---|---|"]
-    for action in parser._actions:
-        if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
-            continue
-        if action.option_strings:
-            name = ", ".join(action.option_strings)
-            if action.nargs != 0:
-                name += " " + (action.metavar or action.dest.upper())
-        else:
-            name = action.metavar or action.dest
-        choices = f" (one of {', '.join(f'`{c}`' for c in action.choices)})" if action.choices else ""
-        default = "" if action.default in (None, False, argparse.SUPPRESS) else f"`{action.default}`"
-        rows.append(f"| `{_cell(name)}` | {_cell((action.help or '') + choices)} | {default} |")
-    return rows
-
-
 def cli_reference() -> str:
-    """Markdown for every command of ``avq``: usage, description, arguments."""
+    """Markdown for every command of ``avq``: what it does and its help, as ``avq COMMAND --help`` prints it."""
     from avq.cli import build_parser
 
     parser = build_parser()
-    parts = [f"```text\n{parser.format_usage().strip()}\n```", parser.description or ""]
-    for name, (sub, summary) in _subcommands(parser).items():
-        usage = sub.format_usage().strip().removeprefix("usage: ")
+    parts = [f"```text\n{parser.format_help().strip()}\n```"]
+    for name, (sub, summary) in parser.commands.items():
         parts += [f"## `avq {name}` {{#avq-{name}}}", f"{summary[:1].upper() + summary[1:]}.",
-                  f"```text\n{usage}\n```", sub.description or "", "\n".join(_option_rows(sub))]
-    return "\n\n".join(p for p in parts if p) + "\n"
+                  f"```text\n{sub.format_help().strip()}\n```"]
+    return "\n\n".join(parts) + "\n"
 
 
 def _value(value: Any) -> str:

@@ -15,6 +15,9 @@ __all__ = ["build_parser"]
 
 
 class _Parser(argparse.ArgumentParser):
+    #: The subcommands: name -> (its parser, its one-line help), in order (filled by :func:`build_parser`).
+    commands: dict[str, tuple[argparse.ArgumentParser, str]]
+
     def error(self, message: str) -> None:  # one line, no usage dump
         raise UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
 
@@ -45,14 +48,21 @@ def _nonnegative_int(name: str):
 _NO_PROGRESS_HELP = "hide the progress bar (hidden anyway when stderr is not a terminal)"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``avq`` parser: its subcommands, each with ``func`` (its ``cmd_NAME``) as the default to call."""
+def build_parser() -> _Parser:
+    """The ``avq`` parser: its subcommands, each with ``func`` (its ``cmd_NAME``) as the default to call, also
+    listed in its ``commands`` (name -> (parser, one-line help)) for the reference pages."""
     parser = _Parser(prog="avq", description="Reinforcement learning with adaptive vector quantization.")
     from avq import __version__
 
     parser.add_argument("--version", action="version", version=f"avq {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
-    rep = sub.add_parser(
+    parser.commands = {}
+
+    def command(name: str, **kwargs: str) -> argparse.ArgumentParser:
+        parser.commands[name] = (sub.add_parser(name, **kwargs), kwargs.get("help", ""))
+        return parser.commands[name][0]
+
+    rep = command(
         "reproduce",
         help="reproduce the paper's maze experiment",
         description="Train each agent for each seed on the maze, print a table, and write into --out: "
@@ -79,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "actions as it learns (on its best seed; a few seconds)")
     rep.set_defaults(func=cmd_reproduce)
 
-    tr = sub.add_parser(
+    tr = command(
         "train",
         help="train one agent on any registered Gymnasium environment",
         description="Train an agent and write config.yml, progress.csv, checkpoint.zip, model.zip and summary.json "
@@ -108,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     tr.set_defaults(func=cmd_train)
 
-    sw = sub.add_parser(
+    sw = command(
         "sweep",
         help="run a grid of configurations x seeds, locally or on a Ray or Dask cluster",
         description="avq sweep CONFIG.yml --out DIR runs every trial not yet finished in DIR and writes "
@@ -127,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     sw.set_defaults(func=cmd_sweep)
 
-    ev = sub.add_parser("evaluate", help="evaluate a trained run's greedy policy",
+    ev = command("evaluate", help="evaluate a trained run's greedy policy",
                         description="Load DIR/model.zip (or a model file) and report the mean and spread of the "
                         "return. An episode that the environment does not end within --max-steps steps is cut "
                         "there, and the report says how many were (capped in --json).")
