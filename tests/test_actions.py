@@ -11,13 +11,8 @@ import numpy as np
 import pytest
 
 from avq import AGENTS, make_agent
-from avq.agents.actions.agent import (
-    ActionCodebookSarsa,
-    gabriel_neighbours,
-    merged_vector,
-    plan_growth,
-    plan_merges,
-)
+from avq.agents.actions.agent import ActionCodebookSarsa
+from avq.agents.actions.codebook import gabriel_neighbours, merged_vector, plan_growth, plan_merges
 from avq.agents.base import load
 from avq.checks import CHECKS, _Case
 from avq.evaluation import evaluate_policy
