@@ -11,7 +11,7 @@ from gymnasium import spaces
 from numba import njit
 
 from avq.envs.layouts import Layout, LayoutSpec, check_start, layout_text, load_layout
-from avq.envs.render import grid_frame
+from avq.envs.render import MazeRendering, grid_frame
 
 __all__ = ["GridMaze", "GridDynamics", "grid_move", "slipped", "NORTH", "EAST", "SOUTH", "WEST"]
 
@@ -98,7 +98,7 @@ def grid_move(walls: np.ndarray, x: int, y: int, a: int, gx: int, gy: int) -> tu
     return nx, ny, MOVE_REWARD, False, False
 
 
-class GridMaze(gym.Env[np.ndarray, np.int64]):
+class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
     """A robot moves on the free positions of a grid maze towards a goal.
 
     ## Description
@@ -138,7 +138,7 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
     the new position). ``self.layout.distances`` holds all of them.
     """
 
-    metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 8}
+    metadata = {"render_modes": MazeRendering.RENDER_MODES, "render_fps": 8}
 
     def __init__(
         self,
@@ -152,10 +152,8 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         if isinstance(slip, bool) or not isinstance(slip, (int, float, np.integer, np.floating)) \
                 or not 0.0 <= float(slip) < 1.0:
             raise ValueError(f"slip must be a probability in [0, 1), not {slip!r} (0: deterministic moves)")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
+        self._set_render_mode(render_mode)
         self._start_mode = start
-        self.render_mode = render_mode
         h, w = self.layout.height, self.layout.width
         self.observation_space = spaces.Box(
             low=np.zeros(2, dtype=np.float32),
@@ -204,14 +202,6 @@ class GridMaze(gym.Env[np.ndarray, np.int64]):
         self._x, self._y, reward, terminated, collision = grid_move(
             self.layout.walls, self._x, self._y, a, self._gx, self._gy)
         return self._obs(), reward, terminated, False, self._info(collision)
-
-    def render(self) -> str | np.ndarray | None:
-        """The maze and the robot: text with ``render_mode="ansi"``, an RGB array with ``"rgb_array"``, else None."""
-        if self.render_mode == "ansi":
-            return self._render_text()
-        if self.render_mode == "rgb_array":
-            return self._render_rgb()
-        return None
 
     # -- helpers -----------------------------------------------------------------------
     @property

@@ -11,12 +11,13 @@ found in one place.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from avq.envs.layouts import COLOURS, Layout, layout_image
 
-__all__ = ["grid_frame", "robot_frame", "FRAME_COLOURS"]
+__all__ = ["grid_frame", "robot_frame", "FRAME_COLOURS", "MazeRendering"]
 
 #: Colours of the frames (RGB): the layout's :data:`~avq.envs.layouts.COLOURS` and the sonar beams.
 FRAME_COLOURS = {**COLOURS, "beam": (240, 170, 20)}
@@ -79,3 +80,31 @@ def robot_frame(layout: Layout, x: float, y: float, radius: float, directions: n
     py = (yy + 0.5) / scale - 0.5
     img[(px - x) ** 2 + (py - y) ** 2 <= radius**2] = FRAME_COLOURS["robot"]
     return img
+
+
+class MazeRendering:
+    """What both maze environments share about rendering: the modes, the check of ``render_mode``, and
+    :meth:`render`, which draws the env's own ``_render_text`` or ``_render_rgb``."""
+
+    #: The render modes (each maze adds its ``render_fps``).
+    RENDER_MODES = ["ansi", "rgb_array"]
+    render_mode: str | None
+
+    def _set_render_mode(self, render_mode: Any) -> None:
+        if render_mode is not None and render_mode not in self.RENDER_MODES:
+            raise ValueError(f"render_mode must be one of {self.RENDER_MODES}, not {render_mode!r}")
+        self.render_mode = render_mode
+
+    def render(self) -> str | np.ndarray | None:
+        """The maze and the robot: text with ``render_mode="ansi"``, an RGB array with ``"rgb_array"``, else None."""
+        if self.render_mode == "ansi":
+            return self._render_text()
+        if self.render_mode == "rgb_array":
+            return self._render_rgb()
+        return None
+
+    def _render_text(self) -> str:
+        raise NotImplementedError
+
+    def _render_rgb(self) -> np.ndarray:
+        raise NotImplementedError

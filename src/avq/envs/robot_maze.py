@@ -19,7 +19,7 @@ from gymnasium import spaces
 
 from avq.envs.grid_maze import EAST, NORTH, SOUTH, WEST, action_index, read_only
 from avq.envs.layouts import Layout, LayoutSpec, check_start, layout_text, load_layout
-from avq.envs.render import robot_frame
+from avq.envs.render import MazeRendering, robot_frame
 from avq.envs.robot_geometry import (
     EPS,
     N_SONARS,
@@ -38,7 +38,7 @@ __all__ = ["RobotMaze", "RobotDynamics", "robot_move", "random_start", "sonar_ra
            "SOUTH", "WEST"]
 
 
-class RobotMaze(gym.Env[np.ndarray, np.int64]):
+class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
     """A disc-shaped robot with 16 sonars moves through a continuous maze towards a goal.
 
     ## Description
@@ -109,7 +109,7 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
     goal (a breadth-first search over the lattice of positions reachable from it).
     """
 
-    metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 16}
+    metadata = {"render_modes": MazeRendering.RENDER_MODES, "render_fps": 16}
 
     def __init__(
         self,
@@ -142,13 +142,11 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
             max_steps = math.ceil(100.0 / move - EPS)
         elif isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
             raise ValueError(f"max_steps must be None or an integer >= 1, not {max_steps!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, not {render_mode!r}")
+        self._set_render_mode(render_mode)
         if not isinstance(observe_sonar, (bool, np.bool_)):
             raise ValueError(f"observe_sonar must be True or False, not {observe_sonar!r}")
         observe_sonar = bool(observe_sonar)
         self._start_mode = start
-        self.render_mode = render_mode
 
         h, w = self.layout.height, self.layout.width
         low = [-0.5, -0.5]
@@ -213,14 +211,6 @@ class RobotMaze(gym.Env[np.ndarray, np.int64]):
         truncated = self._steps >= self.max_steps
         self._sense()
         return self._obs(), reward, terminated, truncated, self._info(collision)
-
-    def render(self) -> str | np.ndarray | None:
-        """The maze and the robot: text with ``render_mode="ansi"``, an RGB array with ``"rgb_array"``, else None."""
-        if self.render_mode == "ansi":
-            return self._render_text()
-        if self.render_mode == "rgb_array":
-            return self._render_rgb()
-        return None
 
     # -- evaluation ----------------------------------------------------------------------
     def start_positions(self) -> np.ndarray:
