@@ -167,6 +167,54 @@ def test_the_recorder_keeps_evenly_spaced_views_and_the_last_and_changes_nothing
                                           seed=1).learn(total_episodes=1).n_cells
 
 
+def _same_views(a, b):
+    return [v.episode for v in a] == [v.episode for v in b] and all(
+        np.array_equal(x.cells, y.cells) and np.array_equal(x.actions, y.actions) and x.n_cells == y.n_cells
+        and np.array_equal(x.vectors, y.vectors) for x, y in zip(a, b))
+
+
+def test_the_recorder_learning_in_chunks_keeps_the_views_a_separate_training_to_each_episode_gives():
+    def maze():
+        return gym.make("avq/GridMaze-v0", layout="lau2002")
+
+    recorder = PartitionRecorder(maze(), max_frames=4)
+    agent = recorder.learn(make_agent("avq-paper", maze(), seed=1), 20)
+    views = recorder.views()
+    assert agent.num_episodes == 20 and [v.episode for v in views] == [1, 8, 16, 20]
+    assert recorder.every == 8
+    # Each view is the partition of an agent of the same seed trained on its own up to that episode.
+    for view in views:
+        alone = make_agent("avq-paper", maze(), seed=1).learn(total_episodes=view.episode)
+        expected = partition_view(alone, recorder.maze)
+        assert view.n_cells == alone.n_cells == expected.n_cells
+        assert np.array_equal(view.cells, expected.cells) and np.array_equal(view.actions, expected.actions)
+        assert np.array_equal(view.vectors, alone.codebook_[:, :2])
+    # The agent is the one learn gives in one call, and the views are those of the recorder as a callback.
+    plain = make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20)
+    assert np.array_equal(plain.codebook_, agent.codebook_) and np.array_equal(plain.q_, agent.q_)
+    assert plain.num_timesteps == agent.num_timesteps
+    assert np.array_equal(plain.episode_history()["steps"], agent.episode_history()["steps"])
+    called = PartitionRecorder(maze(), max_frames=4)
+    make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20, callback=called)
+    assert _same_views(views, called.views())
+
+
+@pytest.mark.parametrize("max_frames,chunks", [(4, [7, 13]), (3, [1, 0, 5, 30]), (100, [12, 300])])
+def test_the_recorder_learning_in_chunks_goes_on_as_the_callback_does(max_frames, chunks):
+    def maze():
+        return gym.make("avq/GridMaze-v0", layout=SMALL)
+
+    recorder = PartitionRecorder(maze(), max_frames=max_frames)
+    agent = make_agent("avq", maze(), seed=3)
+    for n in chunks:
+        recorder.learn(agent, n)
+    called = PartitionRecorder(maze(), max_frames=max_frames)
+    other = make_agent("avq", maze(), seed=3).learn(total_episodes=sum(chunks), callback=called)
+    assert recorder.every == called.every
+    assert _same_views(recorder.views(), called.views())
+    assert np.array_equal(agent.q_, other.q_) and np.array_equal(agent.codebook_, other.codebook_)
+
+
 def test_the_gif_has_one_frame_per_view(tmp_path):
     env = gym.make("avq/GridMaze-v0", layout="lau2002")
     recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout="lau2002"))
