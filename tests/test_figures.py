@@ -102,6 +102,38 @@ def test_each_cell_is_labelled_on_its_own_squares_once_per_connected_part():
     assert all(cells[i] == c for c, i in anchors)
 
 
+def _anchors_by_labelling(squares, cells):
+    """cell_anchors as it was first written: the grid labelled once per cell (scipy)."""
+    from scipy.ndimage import label
+
+    grid = np.full((squares[:, 1].max() + 1, squares[:, 0].max() + 1), -1)
+    index = np.full(grid.shape, -1)
+    grid[squares[:, 1], squares[:, 0]] = cells
+    index[squares[:, 1], squares[:, 0]] = np.arange(len(squares))
+    rows = []
+    for c in np.unique(cells):
+        parts, n_parts = label(grid == c)
+        for part in range(1, n_parts + 1):
+            own = index[parts == part]
+            xy = squares[own].astype(float)
+            rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
+    return np.array(rows, dtype=np.int64).reshape(-1, 2)
+
+
+def test_the_anchors_are_those_of_labelling_the_grid_once_per_cell():
+    rng = np.random.default_rng(0)
+    for case in range(300):
+        h, w = rng.integers(1, 9, size=2)
+        ys, xs = np.nonzero(rng.random((h, w)) < rng.uniform(0.3, 1.0))
+        if len(xs) == 0:
+            continue
+        squares = np.stack([xs, ys], axis=1)
+        if case % 3 == 0:  # squares in any order
+            squares = squares[rng.permutation(len(squares))]
+        cells = rng.integers(0, rng.integers(1, 6), size=len(squares))
+        assert np.array_equal(cell_anchors(squares, cells), _anchors_by_labelling(squares, cells))
+
+
 def test_the_arrows_of_a_trained_agent_lie_on_their_own_cells():
     env = gym.make("avq/GridMaze-v0", layout="lau2002")
     agent = make_agent("avq", env, seed=0).learn(total_episodes=300)

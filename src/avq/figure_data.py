@@ -99,19 +99,33 @@ def cell_anchors(squares: np.ndarray, cells: np.ndarray) -> np.ndarray:
     Returns:
         ``(m, 2)`` int rows ``(cell, index in squares)``, by cell and then by part.
     """
-    from scipy.ndimage import label
-
-    grid = np.full((int(squares[:, 1].max()) + 1, int(squares[:, 0].max()) + 1), -1, dtype=np.int64)
-    index = np.full(grid.shape, -1, dtype=np.int64)
-    grid[squares[:, 1], squares[:, 0]] = cells
-    index[squares[:, 1], squares[:, 0]] = np.arange(len(squares))
+    squares = np.asarray(squares)
+    cells = np.asarray(cells)
+    xs, ys, cs = squares[:, 0].tolist(), squares[:, 1].tolist(), cells.tolist()
+    at = {(x, y): i for i, (x, y) in enumerate(zip(xs, ys))}
+    raster = np.lexsort((squares[:, 0], squares[:, 1])).argsort().tolist()  # each square's place in row-major order
+    part = [-1] * len(cs)
+    parts = []  # (cell, first square, squares): one per connected part, found from its first square
+    for i in range(len(cs)):  # (a flood fill: faster than labelling the grid once per cell, as it was)
+        if part[i] >= 0:
+            continue
+        part[i] = len(parts)
+        own, todo = [], [i]
+        while todo:
+            j = todo.pop()
+            own.append(j)
+            x, y = xs[j], ys[j]
+            for n in (at.get((x, y - 1)), at.get((x - 1, y)), at.get((x + 1, y)), at.get((x, y + 1))):
+                if n is not None and part[n] < 0 and cs[n] == cs[i]:  # 4-connected
+                    part[n] = part[i]
+                    todo.append(n)
+        own.sort(key=raster.__getitem__)  # row-major
+        parts.append((cs[i], raster[own[0]], own))
     rows = []
-    for c in np.unique(cells):
-        parts, n_parts = label(grid == c)  # 4-connected
-        for part in range(1, n_parts + 1):
-            own = index[parts == part]  # row-major, as the squares
-            xy = squares[own].astype(float)
-            rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
+    for c, _, own in sorted(parts, key=lambda p: p[:2]):  # by cell, then by part (its first square, row-major)
+        own = np.array(own)
+        xy = squares[own].astype(float)
+        rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
     return np.array(rows, dtype=np.int64).reshape(-1, 2)
 
 
