@@ -258,6 +258,22 @@ def test_the_gif_has_one_frame_per_view(tmp_path):
         assert gif.format == "GIF" and gif.n_frames == 12
 
 
+def test_a_gif_frame_keeps_its_255_most_frequent_colours_and_takes_the_nearest_for_the_others():
+    from avq.plotting import _palette_image
+
+    kept = np.stack([np.arange(255) * 1, 255 - np.arange(255), np.arange(255) * 7 % 256], axis=1)
+    exact = np.repeat(kept, 2, axis=0).reshape(17, 30, 3).astype(np.uint8)  # 255 colours, 2 pixels each
+    image = _palette_image(Image.fromarray(exact))
+    assert image.mode == "P" and np.array_equal(np.asarray(image.convert("RGB")), exact)
+    assert len(image.getpalette()) <= 255 * 3  # an entry is left free (Pillow's transparent pixels)
+    rare = np.clip(kept[::25] + [1, -2, 1], 0, 255)  # 11 more colours, on 1 pixel each, near 11 of those
+    rgb = np.concatenate([exact.reshape(-1, 3), rare, kept[:1]]).reshape(1, -1, 3).astype(np.uint8)
+    back = np.asarray(_palette_image(Image.fromarray(rgb)).convert("RGB"))
+    assert np.array_equal(back[0, :510], exact.reshape(-1, 3))
+    assert np.array_equal(back[0, 510:521], kept[::25])  # each rare colour as the colour it is nearest
+    assert np.array_equal(back[0, 521], kept[0])
+
+
 def test_train_animate_writes_the_gif_on_both_mazes(tmp_path, capsys):
     out = tmp_path / "grid"
     assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "15", "--out", str(out),
