@@ -263,7 +263,7 @@ def _colour_ids(views: Sequence[PartitionView]) -> list[np.ndarray]:
 def _palette_image(frame):
     """An RGB frame as a palette image for the GIF: its 255 most frequent colours, exactly, and every
     other colour as the nearest of those (with a frame of flat cells, most pixels keep their colour;
-    several times faster than Pillow's median cut, which shifts more of them). The 256th entry is left
+    about twice as fast as Pillow's median cut, which shifts more of them). The 256th entry is left
     free: Pillow makes it transparent, for the pixels that a frame leaves as they were."""
     from PIL import Image
 
