@@ -102,6 +102,38 @@ def test_each_cell_is_labelled_on_its_own_squares_once_per_connected_part():
     assert all(cells[i] == c for c, i in anchors)
 
 
+def _anchors_by_labelling(squares, cells):
+    """cell_anchors as it was first written: the grid labelled once per cell (scipy)."""
+    from scipy.ndimage import label
+
+    grid = np.full((squares[:, 1].max() + 1, squares[:, 0].max() + 1), -1)
+    index = np.full(grid.shape, -1)
+    grid[squares[:, 1], squares[:, 0]] = cells
+    index[squares[:, 1], squares[:, 0]] = np.arange(len(squares))
+    rows = []
+    for c in np.unique(cells):
+        parts, n_parts = label(grid == c)
+        for part in range(1, n_parts + 1):
+            own = index[parts == part]
+            xy = squares[own].astype(float)
+            rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
+    return np.array(rows, dtype=np.int64).reshape(-1, 2)
+
+
+def test_the_anchors_are_those_of_labelling_the_grid_once_per_cell():
+    rng = np.random.default_rng(0)
+    for case in range(300):
+        h, w = rng.integers(1, 9, size=2)
+        ys, xs = np.nonzero(rng.random((h, w)) < rng.uniform(0.3, 1.0))
+        if len(xs) == 0:
+            continue
+        squares = np.stack([xs, ys], axis=1)
+        if case % 3 == 0:  # squares in any order
+            squares = squares[rng.permutation(len(squares))]
+        cells = rng.integers(0, rng.integers(1, 6), size=len(squares))
+        assert np.array_equal(cell_anchors(squares, cells), _anchors_by_labelling(squares, cells))
+
+
 def test_the_arrows_of_a_trained_agent_lie_on_their_own_cells():
     env = gym.make("avq/GridMaze-v0", layout="lau2002")
     agent = make_agent("avq", env, seed=0).learn(total_episodes=300)
@@ -167,6 +199,54 @@ def test_the_recorder_keeps_evenly_spaced_views_and_the_last_and_changes_nothing
                                           seed=1).learn(total_episodes=1).n_cells
 
 
+def _same_views(a, b):
+    return [v.episode for v in a] == [v.episode for v in b] and all(
+        np.array_equal(x.cells, y.cells) and np.array_equal(x.actions, y.actions) and x.n_cells == y.n_cells
+        and np.array_equal(x.vectors, y.vectors) for x, y in zip(a, b))
+
+
+def test_the_recorder_learning_in_chunks_keeps_the_views_a_separate_training_to_each_episode_gives():
+    def maze():
+        return gym.make("avq/GridMaze-v0", layout="lau2002")
+
+    recorder = PartitionRecorder(maze(), max_frames=4)
+    agent = recorder.learn(make_agent("avq-paper", maze(), seed=1), 20)
+    views = recorder.views()
+    assert agent.num_episodes == 20 and [v.episode for v in views] == [1, 8, 16, 20]
+    assert recorder.every == 8
+    # Each view is the partition of an agent of the same seed trained on its own up to that episode.
+    for view in views:
+        alone = make_agent("avq-paper", maze(), seed=1).learn(total_episodes=view.episode)
+        expected = partition_view(alone, recorder.maze)
+        assert view.n_cells == alone.n_cells == expected.n_cells
+        assert np.array_equal(view.cells, expected.cells) and np.array_equal(view.actions, expected.actions)
+        assert np.array_equal(view.vectors, alone.codebook_[:, :2])
+    # The agent is the one learn gives in one call, and the views are those of the recorder as a callback.
+    plain = make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20)
+    assert np.array_equal(plain.codebook_, agent.codebook_) and np.array_equal(plain.q_, agent.q_)
+    assert plain.num_timesteps == agent.num_timesteps
+    assert np.array_equal(plain.episode_history()["steps"], agent.episode_history()["steps"])
+    called = PartitionRecorder(maze(), max_frames=4)
+    make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20, callback=called)
+    assert _same_views(views, called.views())
+
+
+@pytest.mark.parametrize("max_frames,chunks", [(4, [7, 13]), (3, [1, 0, 5, 30]), (100, [12, 300])])
+def test_the_recorder_learning_in_chunks_goes_on_as_the_callback_does(max_frames, chunks):
+    def maze():
+        return gym.make("avq/GridMaze-v0", layout=SMALL)
+
+    recorder = PartitionRecorder(maze(), max_frames=max_frames)
+    agent = make_agent("avq", maze(), seed=3)
+    for n in chunks:
+        recorder.learn(agent, n)
+    called = PartitionRecorder(maze(), max_frames=max_frames)
+    other = make_agent("avq", maze(), seed=3).learn(total_episodes=sum(chunks), callback=called)
+    assert recorder.every == called.every
+    assert _same_views(recorder.views(), called.views())
+    assert np.array_equal(agent.q_, other.q_) and np.array_equal(agent.codebook_, other.codebook_)
+
+
 def test_the_gif_has_one_frame_per_view(tmp_path):
     env = gym.make("avq/GridMaze-v0", layout="lau2002")
     recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout="lau2002"))
@@ -176,6 +256,22 @@ def test_the_gif_has_one_frame_per_view(tmp_path):
     path = animate_partition(views, recorder.env, tmp_path / "p.gif", title="avq")
     with Image.open(path) as gif:
         assert gif.format == "GIF" and gif.n_frames == 12
+
+
+def test_a_gif_frame_keeps_its_255_most_frequent_colours_and_takes_the_nearest_for_the_others():
+    from avq.plotting import _palette_image
+
+    kept = np.stack([np.arange(255) * 1, 255 - np.arange(255), np.arange(255) * 7 % 256], axis=1)
+    exact = np.repeat(kept, 2, axis=0).reshape(17, 30, 3).astype(np.uint8)  # 255 colours, 2 pixels each
+    image = _palette_image(Image.fromarray(exact))
+    assert image.mode == "P" and np.array_equal(np.asarray(image.convert("RGB")), exact)
+    assert len(image.getpalette()) <= 255 * 3  # an entry is left free (Pillow's transparent pixels)
+    rare = np.clip(kept[::25] + [1, -2, 1], 0, 255)  # 11 more colours, on 1 pixel each, near 11 of those
+    rgb = np.concatenate([exact.reshape(-1, 3), rare, kept[:1]]).reshape(1, -1, 3).astype(np.uint8)
+    back = np.asarray(_palette_image(Image.fromarray(rgb)).convert("RGB"))
+    assert np.array_equal(back[0, :510], exact.reshape(-1, 3))
+    assert np.array_equal(back[0, 510:521], kept[::25])  # each rare colour as the colour it is nearest
+    assert np.array_equal(back[0, 521], kept[0])
 
 
 def test_train_animate_writes_the_gif_on_both_mazes(tmp_path, capsys):

@@ -99,19 +99,33 @@ def cell_anchors(squares: np.ndarray, cells: np.ndarray) -> np.ndarray:
     Returns:
         ``(m, 2)`` int rows ``(cell, index in squares)``, by cell and then by part.
     """
-    from scipy.ndimage import label
-
-    grid = np.full((int(squares[:, 1].max()) + 1, int(squares[:, 0].max()) + 1), -1, dtype=np.int64)
-    index = np.full(grid.shape, -1, dtype=np.int64)
-    grid[squares[:, 1], squares[:, 0]] = cells
-    index[squares[:, 1], squares[:, 0]] = np.arange(len(squares))
+    squares = np.asarray(squares)
+    cells = np.asarray(cells)
+    xs, ys, cs = squares[:, 0].tolist(), squares[:, 1].tolist(), cells.tolist()
+    at = {(x, y): i for i, (x, y) in enumerate(zip(xs, ys))}
+    raster = np.lexsort((squares[:, 0], squares[:, 1])).argsort().tolist()  # each square's place in row-major order
+    part = [-1] * len(cs)
+    parts = []  # (cell, first square, squares): one per connected part, found from its first square
+    for i in range(len(cs)):  # (a flood fill: faster than labelling the grid once per cell, as it was)
+        if part[i] >= 0:
+            continue
+        part[i] = len(parts)
+        own, todo = [], [i]
+        while todo:
+            j = todo.pop()
+            own.append(j)
+            x, y = xs[j], ys[j]
+            for n in (at.get((x, y - 1)), at.get((x - 1, y)), at.get((x + 1, y)), at.get((x, y + 1))):
+                if n is not None and part[n] < 0 and cs[n] == cs[i]:  # 4-connected
+                    part[n] = part[i]
+                    todo.append(n)
+        own.sort(key=raster.__getitem__)  # row-major
+        parts.append((cs[i], raster[own[0]], own))
     rows = []
-    for c in np.unique(cells):
-        parts, n_parts = label(grid == c)  # 4-connected
-        for part in range(1, n_parts + 1):
-            own = index[parts == part]  # row-major, as the squares
-            xy = squares[own].astype(float)
-            rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
+    for c, _, own in sorted(parts, key=lambda p: p[:2]):  # by cell, then by part (its first square, row-major)
+        own = np.array(own)
+        xy = squares[own].astype(float)
+        rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
     return np.array(rows, dtype=np.int64).reshape(-1, 2)
 
 
@@ -245,6 +259,47 @@ class PartitionRecorder:
             if len(self._kept) > self.max_frames:
                 self.every *= 2
                 self._kept = [v for v in self._kept if v.episode % self.every == 0]
+
+    def _keep(self, episodes: range) -> tuple[int | None, list[int]]:
+        """The episodes whose views this recorder keeps once it has seen ``episodes`` as a callback: the
+        first and the kept ones (its ``every`` is brought up to date). Bookkeeping on episode numbers alone."""
+        first = None if self._first is None else self._first.episode
+        kept = [v.episode for v in self._kept]
+        for episode in episodes:
+            if first is None:
+                first = episode
+            elif episode % self.every == 0:
+                kept.append(episode)
+                if len(kept) > self.max_frames:
+                    self.every *= 2
+                    kept = [e for e in kept if e % self.every == 0]
+        return first, kept
+
+    def learn(self, agent: BaseAgent, total_episodes: int) -> BaseAgent:
+        """``agent.learn(total_episodes=total_episodes, callback=self)``, with the same agent and the same
+        views, but faster: the views this recorder would keep are known from the episode numbers alone,
+        so the agent learns in a few chunks that end at those episodes (``learn(a)`` then ``learn(b)`` is
+        ``learn(a + b)``), and the compiled loops run whole chunks instead of stopping after every
+        episode for the callback. Returns the agent.
+        """
+        total = int(total_episodes)
+        start = int(agent.num_episodes)
+        if total <= 0:
+            agent.learn(total_episodes=total)
+            return agent
+        first, kept = self._keep(range(start + 1, start + total + 1))
+        old = {v.episode: v for v in ([self._first] if self._first is not None else []) + self._kept}
+        new: dict[int, PartitionView] = {}
+        for episode in sorted({first, *kept} - set(old)):
+            agent.learn(total_episodes=episode - int(agent.num_episodes))
+            new[episode] = partition_view(agent, self.maze)
+        if agent.num_episodes < start + total:
+            agent.learn(total_episodes=start + total - int(agent.num_episodes))
+        views = {**old, **new}
+        self._first = views[first]
+        self._kept = [views[e] for e in kept]
+        self._agent = agent
+        return agent
 
     def views(self) -> list[PartitionView]:
         """The views kept, in order, ending with the agent as it is now."""

@@ -20,6 +20,7 @@ from avq.agents.base import Callback
 from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.envs.layouts import Layout, LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
+from avq.figure_data import PartitionRecorder
 
 __all__ = ["ReproduceRun", "train_maze_run", "warm_up", "reproduce"]
 
@@ -78,19 +79,27 @@ def train_maze_run(
     model_path: str | None = None,
     overrides: dict[str, Any] | None = None,
     callback: Callback | None = None,
+    recorder: PartitionRecorder | None = None,
 ) -> ReproduceRun:
     """Train one agent on a grid maze for ``trials`` episodes and evaluate its greedy policy.
 
     A plain top-level function of its parameters, so that it can run in any process.
     ``wall_s`` times the training alone: the kernels are compiled (or loaded) before, by
     :func:`warm_up` (``warmup_s``).
-    ``callback`` goes to ``learn`` (it sees the agent after every episode).
+    ``callback`` goes to ``learn`` (it sees the agent after every episode). A ``recorder`` keeps views
+    of the partition as it learns: the agent learns through :meth:`PartitionRecorder.learn
+    <avq.figure_data.PartitionRecorder.learn>` (the same agent, in a few chunks; not with ``callback``).
     """
+    if callback is not None and recorder is not None:
+        raise ValueError("give a callback or a recorder, not both")
     warmup = warm_up(agent_name, layout, start, overrides)
     env = gym.make("avq/GridMaze-v0", layout=layout, start=start)
     agent = make_agent(agent_name, env, seed=seed, **(overrides or {}))
     t0 = time.perf_counter()
-    agent.learn(total_episodes=trials, callback=callback)
+    if recorder is not None:
+        recorder.learn(agent, trials)
+    else:
+        agent.learn(total_episodes=trials, callback=callback)
     wall = time.perf_counter() - t0
     eval_env = gym.make("avq/GridMaze-v0", layout=layout, start=start)
     ev = evaluate_maze(agent, eval_env)
@@ -141,7 +150,9 @@ def reproduce(
     it, on the one where it succeeds least; ``partition-NAME.png`` every other AVQ agent on the
     first seed; ``learning_curve.png`` all of them. With ``animate`` (and a headline agent with
     cells), ``partition.gif`` shows the headline agent's partition as it learns on its best seed (that run again, with a
-    :class:`~avq.figure_data.PartitionRecorder`: the same run, since training is seeded).
+    :class:`~avq.figure_data.PartitionRecorder`: the same run, since training is seeded; the best seed is known
+    only once every seed has run. It learns in a few chunks that end at the recorded episodes, which costs far
+    less than recording every seed as it ran would).
 
     Returns the summary (the content of ``summary.json``).
     """
@@ -301,11 +312,11 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
         if name != headline:
             model = load(by[(name, first)].model_path, env=env)
             plot_partition(model, env, out / f"partition-{name}.png", title=title(name, first, model.n_cells))
-    from avq.figure_data import PartitionRecorder, has_partition
+    from avq.figure_data import has_partition
 
     if animate and has_partition(agent_class(headline, "avq/GridMaze-v0")):
         recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout=layout_arg, start=start))
-        train_maze_run(headline, layout_arg, shown[0], trials, start, callback=recorder)
+        train_maze_run(headline, layout_arg, shown[0], trials, start, recorder=recorder)
         animate_partition(recorder.views(), env, out / "partition.gif", title=f"{headline}, seed {shown[0]}")
     curves = {n: [by[(n, int(s))].steps_per_trial for s in seeds] for n in agents}
     cells = {n: [by[(n, int(s))].cells_per_trial for s in seeds] for n in avq_names}
