@@ -227,7 +227,7 @@ def test_the_recorder_learning_in_chunks_keeps_the_views_a_separate_training_to_
     assert plain.num_timesteps == agent.num_timesteps
     assert np.array_equal(plain.episode_history()["steps"], agent.episode_history()["steps"])
     called = PartitionRecorder(maze(), max_frames=4)
-    make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20, callback=called)
+    make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20, callback=lambda a, r: called(a, r))  # every episode
     assert _same_views(views, called.views())
 
 
@@ -241,7 +241,7 @@ def test_the_recorder_learning_in_chunks_goes_on_as_the_callback_does(max_frames
     for n in chunks:
         recorder.learn(agent, n)
     called = PartitionRecorder(maze(), max_frames=max_frames)
-    other = make_agent("avq", maze(), seed=3).learn(total_episodes=sum(chunks), callback=called)
+    other = make_agent("avq", maze(), seed=3).learn(total_episodes=sum(chunks), callback=lambda a, r: called(a, r))
     assert recorder.every == called.every
     assert _same_views(recorder.views(), called.views())
     assert np.array_equal(agent.q_, other.q_) and np.array_equal(agent.codebook_, other.codebook_)

@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 from avq.agents.base import BaseAgent, EpisodeRecord
+from avq.agents.callbacks import BaseCallback
 
 __all__ = ["MazeSquares", "maze_squares", "PartitionView", "partition_view", "cell_anchors", "GreedyWalk",
            "greedy_walk", "sample_walks", "PartitionRecorder", "has_partition"]
@@ -222,8 +223,9 @@ def sample_walks(agent: BaseAgent, env: gym.Env, max_steps: int = 100) -> list[G
     return walks
 
 
-class PartitionRecorder:
-    """A ``learn`` callback that keeps :class:`PartitionView` s of the agent as it learns.
+class PartitionRecorder(BaseCallback):
+    """A ``learn`` callback (:class:`~avq.agents.callbacks.BaseCallback`) that keeps :class:`PartitionView` s of
+    the agent as it learns; a compiled loop stops only at the episodes whose views it keeps.
 
     It keeps the view after the first episode and after every ``every``-th episode, where
     ``every`` starts at 1 and doubles (keeping the views at its new multiples) whenever more
@@ -249,7 +251,11 @@ class PartitionRecorder:
         self._kept: list[PartitionView] = []
         self._agent: BaseAgent | None = None
 
-    def __call__(self, agent: BaseAgent, record: EpisodeRecord) -> None:
+    def episodes_to_next_call(self, agent: BaseAgent) -> int:
+        """The first episode, then every ``every``-th: only there does a compiled loop need to stop."""
+        return 1 if self._first is None else self.every - agent.num_episodes % self.every
+
+    def on_episode_end(self, agent: BaseAgent, record: EpisodeRecord) -> None:
         self._agent = agent
         episode = int(record["episode"])
         if self._first is None:
@@ -260,46 +266,14 @@ class PartitionRecorder:
                 self.every *= 2
                 self._kept = [v for v in self._kept if v.episode % self.every == 0]
 
-    def _keep(self, episodes: range) -> tuple[int | None, list[int]]:
-        """The episodes whose views this recorder keeps once it has seen ``episodes`` as a callback: the
-        first and the kept ones (its ``every`` is brought up to date). Bookkeeping on episode numbers alone."""
-        first = None if self._first is None else self._first.episode
-        kept = [v.episode for v in self._kept]
-        for episode in episodes:
-            if first is None:
-                first = episode
-            elif episode % self.every == 0:
-                kept.append(episode)
-                if len(kept) > self.max_frames:
-                    self.every *= 2
-                    kept = [e for e in kept if e % self.every == 0]
-        return first, kept
+    def __call__(self, agent: BaseAgent, record: EpisodeRecord) -> None:
+        """The recorder as a plain function ``callback(agent, record)`` (then ``learn`` stops after every
+        episode; passed as itself, it stops only where a view is kept)."""
+        self.on_episode_end(agent, record)
 
     def learn(self, agent: BaseAgent, total_episodes: int) -> BaseAgent:
-        """``agent.learn(total_episodes=total_episodes, callback=self)``, with the same agent and the same
-        views, but faster: the views this recorder would keep are known from the episode numbers alone,
-        so the agent learns in a few chunks that end at those episodes (``learn(a)`` then ``learn(b)`` is
-        ``learn(a + b)``), and the compiled loops run whole chunks instead of stopping after every
-        episode for the callback. Returns the agent.
-        """
-        total = int(total_episodes)
-        start = int(agent.num_episodes)
-        if total <= 0:
-            agent.learn(total_episodes=total)
-            return agent
-        first, kept = self._keep(range(start + 1, start + total + 1))
-        old = {v.episode: v for v in ([self._first] if self._first is not None else []) + self._kept}
-        new: dict[int, PartitionView] = {}
-        for episode in sorted({first, *kept} - set(old)):
-            agent.learn(total_episodes=episode - int(agent.num_episodes))
-            new[episode] = partition_view(agent, self.maze)
-        if agent.num_episodes < start + total:
-            agent.learn(total_episodes=start + total - int(agent.num_episodes))
-        views = {**old, **new}
-        self._first = views[first]
-        self._kept = [views[e] for e in kept]
-        self._agent = agent
-        return agent
+        """``agent.learn(total_episodes=total_episodes, callback=self)``. Returns the agent."""
+        return agent.learn(total_episodes=int(total_episodes), callback=self)
 
     def views(self) -> list[PartitionView]:
         """The views kept, in order, ending with the agent as it is now."""
