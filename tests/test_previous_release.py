@@ -1,0 +1,52 @@
+"""Models saved by the previous release (avq 0.1.0, in tests/data/models-0.1.0/) load, and learn on exactly as
+that release did: each pair of files holds one agent saved after a first budget of episodes and again after
+more; this release loads the first, learns the same number of episodes, and must hold what the second holds,
+array for array (wall-clock times aside). So the files stay readable and the results unchanged."""
+
+from __future__ import annotations
+
+import json
+import re
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import avq
+
+DATA = Path(__file__).parent / "data" / "models-0.1.0"
+PAIRS = sorted({re.sub(r"__\d+\.zip$", "", p.name) for p in DATA.glob("*.zip")})
+
+
+def _contents(path: Path) -> tuple[dict, dict[str, np.ndarray]]:
+    """Everything a saved agent holds except wall-clock times and the version that wrote it."""
+    with zipfile.ZipFile(path) as zf:
+        meta = json.loads(zf.read("meta.json"))
+        with np.load(zf.open("arrays.npz")) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    meta["state"].pop("wall_s")
+    meta.pop("avq_version")
+    arrays["history"] = np.delete(arrays["history"], -1, axis=1)  # the wall_s column
+    return meta, arrays
+
+
+def test_every_agent_class_has_a_saved_pair():
+    classes = {json.loads(zipfile.ZipFile(p).read("meta.json"))["class"] for p in DATA.glob("*.zip")}
+    assert classes == {cls.__name__ for cls, _ in avq.AGENTS.values()}
+    assert len(PAIRS) == 11
+
+
+@pytest.mark.parametrize("pair", PAIRS)
+def test_a_model_of_the_previous_release_loads_and_learns_on_as_it_did(tmp_path, pair):
+    first, second = sorted(DATA.glob(f"{pair}__*.zip"), key=lambda p: int(p.stem.rsplit("__", 1)[1]))
+    agent = avq.load(first)
+    assert json.loads(zipfile.ZipFile(first).read("meta.json"))["avq_version"] == "0.1.0"
+    more = int(second.stem.rsplit("__", 1)[1]) - int(first.stem.rsplit("__", 1)[1])
+    agent.learn(total_episodes=more)
+    meta_now, arrays_now = _contents(agent.save(tmp_path / "now.zip"))
+    meta_then, arrays_then = _contents(second)
+    assert meta_now == meta_then
+    assert arrays_now.keys() == arrays_then.keys()
+    for key in arrays_then:
+        assert np.array_equal(arrays_now[key], arrays_then[key]), key
