@@ -259,7 +259,7 @@ def test_the_gif_has_one_frame_per_view(tmp_path):
 
 
 def test_a_gif_frame_keeps_its_255_most_frequent_colours_and_takes_the_nearest_for_the_others():
-    from avq.plotting import _palette_image
+    from avq.plotting.animation import _palette_image
 
     kept = np.stack([np.arange(255) * 1, 255 - np.arange(255), np.arange(255) * 7 % 256], axis=1)
     exact = np.repeat(kept, 2, axis=0).reshape(17, 30, 3).astype(np.uint8)  # 255 colours, 2 pixels each

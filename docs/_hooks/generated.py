@@ -91,8 +91,9 @@ def _first_line(path: Path) -> str:
     """The first sentence of a module's docstring (a package: of its ``__init__.py``)."""
     source = (path / "__init__.py" if path.is_dir() else path).read_text(encoding="utf-8")
     doc = ast.get_docstring(ast.parse(source)) or ""
-    first = " ".join(doc.split("\n\n")[0].split())
-    return first.split(". ")[0].rstrip(".")
+    first = " ".join(doc.split("\n\n")[0].split()).replace("``", "")
+    first = first.split(". ")[0].rstrip(".")
+    return first if len(first) <= 64 else first[:63].rstrip() + "…"
 
 
 def _room(module: str) -> str:
@@ -107,7 +108,7 @@ def _imports(root: Path) -> dict[str, set[str]]:
     """room -> the rooms it imports (module-level imports of ``avq`` modules only)."""
     edges: dict[str, set[str]] = {}
     for path in sorted(root.rglob("*.py")):
-        module = "avq." + ".".join(path.relative_to(root).with_suffix("").parts).removesuffix(".__init__")
+        module = ("avq." + ".".join(path.relative_to(root).with_suffix("").parts)).removesuffix(".__init__")
         room = _room(module)
         if room == "avq":
             continue

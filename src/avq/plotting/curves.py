@@ -1,0 +1,141 @@
+"""Learning curves: the return per episode as a running mean, with the spread over seeds."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from avq.plotting._figure import pyplot, save_figure
+
+__all__ = ["plot_learning_curves", "learning_curves_figure", "running_mean", "mean_ci95", "MIN_SEEDS_FOR_INTERVAL"]
+
+
+def running_mean(y: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Trailing mean over ``window`` trials, only where a whole window exists.
+
+    Returns the trials ``window .. len(y)`` (counted from 1) and the mean of the
+    ``window`` values ending at each; nothing is padded, so no point averages
+    fewer trials than the others. With ``window`` 1 (or less) the values themselves.
+    """
+    y = np.asarray(y, dtype=float)
+    window = max(1, min(int(window), len(y)))
+    if len(y) == 0:
+        return np.zeros(0, dtype=np.int64), y
+    c = np.cumsum(np.insert(y, 0, 0.0))
+    return np.arange(window, len(y) + 1), (c[window:] - c[:-window]) / window
+
+
+def mean_ci95(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean over axis 0 and the half-width of its 95% t-interval."""
+    rows = np.asarray(rows, dtype=float)
+    mean = rows.mean(axis=0)
+    n = rows.shape[0]
+    if n < 2:
+        return mean, np.zeros_like(mean)
+    from scipy.special import stdtrit  # Student's t quantile; far lighter to import than scipy.stats
+
+    half = stdtrit(n - 1, 0.975) * rows.std(axis=0, ddof=1) / np.sqrt(n)
+    return mean, half
+
+
+#: With fewer seeds than this, the spread over seeds is drawn as the seeds themselves (thin lines):
+#: a t-interval from two or three seeds is as wide as the axis and says little.
+MIN_SEEDS_FOR_INTERVAL = 5
+
+
+def _mean_and_spread(ax, x: np.ndarray, rows: np.ndarray, colour: str, band: bool, label: str) -> None:
+    """The mean over seeds (rows), and either its 95% t-interval as a band or every seed as a thin line."""
+    mean, half = mean_ci95(rows)
+    if band:
+        ax.fill_between(x, mean - half, mean + half, color=colour, alpha=0.2, lw=0)
+    else:
+        for row in rows:
+            ax.plot(x, row, color=colour, lw=0.7, alpha=0.4)
+    ax.plot(x, mean, color=colour, lw=1.8, label=label)
+
+
+def learning_curves_figure(
+    curves: Mapping[str, Sequence[np.ndarray]],
+    cells: Mapping[str, Sequence[np.ndarray]] | None = None,
+    window: int = 20,
+    ylabel: str = "steps per trial",
+    title: str | None = None,
+    xlabel: str = "trial",
+):
+    """The figure of :func:`plot_learning_curves` (a Matplotlib ``Figure``; the caller closes it)."""
+    plt = pyplot()
+    from matplotlib.ticker import MaxNLocator
+
+    two = bool(cells)
+    fig, axes = plt.subplots(1, 2 if two else 1, figsize=(11 if two else 6.5, 4.2), squeeze=False)
+    ax = axes[0, 0]
+    band = min(len(runs) for runs in curves.values()) >= MIN_SEEDS_FOR_INTERVAL
+    shortest = min(len(r) for runs in curves.values() for r in runs)
+    window = max(1, min(int(window), shortest // 10))
+    colour = {name: f"C{k % 10}" for k, name in enumerate(curves)}
+    for name, runs in curves.items():
+        n = min(len(r) for r in runs)
+        means = [running_mean(np.asarray(r[:n], float), window) for r in runs]
+        label = f"{name} ({len(runs)} seed{'s' if len(runs) != 1 else ''})"
+        _mean_and_spread(ax, means[0][0], np.stack([m for _, m in means]), colour[name], band, label)
+    spread = ("mean over seeds and its 95% t-interval" if band else
+              "mean over seeds (thick) and each seed (thin)")
+    smoothing = f", each a {window}-{xlabel} trailing mean" if window > 1 else ""
+    ax.set_title(f"{title or 'learning curves'}\n({spread}{smoothing})", fontsize=10)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if two:
+        ax2 = axes[0, 1]
+        for name, runs in cells.items():
+            n = min(len(r) for r in runs)
+            rows = np.stack([np.asarray(r[:n], float) for r in runs])
+            _mean_and_spread(ax2, np.arange(1, n + 1), rows, colour.get(name, "k"), band, name)
+        left_out = [name for name in curves if name not in cells]
+        note = f"\n(not drawn: {', '.join(left_out)}, without a codebook)" if left_out else ""
+        ax2.set_title(f"codebook size{note}", fontsize=10)
+        ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax2.set_xlabel(xlabel)
+        ax2.set_ylabel("cells")
+    for a in axes[0]:
+        a.set_xlim(left=0)  # the panels share the trial axis, though a trailing mean starts later
+        a.xaxis.set_major_locator(MaxNLocator(integer=True))
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    # One legend for both panels (an agent has the same colour in each), below them, off the data.
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=min(3, len(labels)),
+               fontsize=8, frameon=False)
+    return fig
+
+
+def plot_learning_curves(
+    curves: Mapping[str, Sequence[np.ndarray]],
+    path: str | os.PathLike,
+    cells: Mapping[str, Sequence[np.ndarray]] | None = None,
+    window: int = 20,
+    ylabel: str = "steps per trial",
+    title: str | None = None,
+    xlabel: str = "trial",
+) -> Path:
+    """Learning curves, one line per agent (or configuration): the mean over seeds and its spread.
+
+    The spread is the 95% t-interval of the mean with at least :data:`MIN_SEEDS_FOR_INTERVAL`
+    seeds for every curve, else each seed as a thin line. Curves are trailing means over
+    ``window`` trials (:func:`running_mean`; at most a tenth of the shortest run), drawn from
+    the first whole window. The legend goes below the panels.
+
+    Args:
+        curves: agent -> one array per seed (e.g. steps per trial).
+        path: File to write.
+        cells: agent -> one array per seed of codebook size per trial (a second panel,
+            which names the agents of ``curves`` it leaves out).
+        window: Trailing-mean window.
+        title: First line of the title; the second says what is drawn.
+    """
+    fig = learning_curves_figure(curves, cells=cells, window=window, ylabel=ylabel, title=title, xlabel=xlabel)
+    out = save_figure(fig, path)
+    pyplot().close(fig)
+    return out
