@@ -168,6 +168,8 @@ def test_a_missing_backend_names_its_extra(monkeypatch, tmp_path):
         sweep(CONFIG, tmp_path / "o", backend="ray", progress=False)
 
 
+# Slow (starts a Ray cluster); the fast run keeps the same check on a Dask cluster below and the local sweep.
+@pytest.mark.slow
 def test_ray_cluster_gives_the_local_results(local_run, tmp_path):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)  # a real local cluster
