@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import gymnasium as gym
@@ -46,3 +52,44 @@ class ScriptedEnv(gym.Env):
 @pytest.fixture
 def scripted():
     return ScriptedEnv
+
+
+# -- the command line, in this process or in a new one -------------------------------------------------------
+
+
+@dataclass
+class CliResult:
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def cli_in_process(*args: str, cwd=None) -> CliResult:
+    """``avq ARGS`` through ``avq.cli.main`` in this process (fast): its exit code and what it printed."""
+    from avq.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    here = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(list(args))
+            except SystemExit as e:  # argparse's errors
+                code = e.code
+    finally:
+        os.chdir(here)
+    return CliResult(code, out.getvalue(), err.getvalue())
+
+
+def cli_subprocess(*args: str, cwd=None) -> CliResult:
+    """``python -m avq.cli ARGS`` in a new process (the console entry point, as a user runs it; ~1-2 s each)."""
+    proc = subprocess.run([sys.executable, "-m", "avq.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return CliResult(proc.returncode, proc.stdout, proc.stderr)
+
+
+#: Parametrise a test of the command line on both: the fast run checks every case in this process, the full
+#: run (``pytest``) also through a new process.
+CLI_RUNNERS = [pytest.param(cli_in_process, id="in-process"),
+               pytest.param(cli_subprocess, id="subprocess", marks=pytest.mark.slow)]

@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from avq.cli import main
+from conftest import CLI_RUNNERS
 
 
 def test_reproduce_end_to_end_small_budget(tmp_path, capsys):
@@ -62,10 +63,10 @@ def test_reproduce_with_a_layout_file_and_fixed_start(tmp_path):
         (["frobnicate"], "invalid choice"),
     ],
 )
-def test_user_mistakes_exit_2_with_one_line(args, needle, tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", *args, "--out", str(tmp_path / "x")]
-                          if args[0] == "reproduce" else [sys.executable, "-m", "avq.cli", *args],
-                          capture_output=True, text=True, cwd=tmp_path)
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
+def test_user_mistakes_exit_2_with_one_line(args, needle, tmp_path, run_cli):
+    proc = run_cli(*args, "--out", str(tmp_path / "x"), cwd=tmp_path) if args[0] == "reproduce" else run_cli(
+        *args, cwd=tmp_path)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr

@@ -124,6 +124,8 @@ def test_an_episode_that_the_environment_ends_is_not_counted_as_capped(tmp_path,
                                              capture_output=True, text=True).stdout
 
 
+# Slow (100,000 steps); the fast run keeps the capped evaluation above and the progress bars of learn and train.
+@pytest.mark.slow
 def test_a_long_evaluation_shows_progress_but_not_into_a_file(cliff_run, capsys):
     capsys.readouterr()
     report = evaluate_run(cliff_run, episodes=1, progress=True)  # 100,000 steps: a few seconds

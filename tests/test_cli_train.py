@@ -11,6 +11,7 @@ import yaml
 
 import avq
 from avq.cli import main
+from conftest import CLI_RUNNERS
 
 
 def run_cli(*args, cwd=None):
@@ -94,6 +95,7 @@ def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
     assert (out / "model.zip").read_bytes() == before
 
 
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
 @pytest.mark.parametrize(
     "args,needle",
     [
@@ -115,7 +117,7 @@ def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
         (["train", "--env", "Pendulum-v1", "--episodes", "2"], "use the agent 'avq-actions'"),
     ],
 )
-def test_train_and_evaluate_mistakes_exit_2_with_one_line(args, needle, tmp_path):
+def test_train_and_evaluate_mistakes_exit_2_with_one_line(args, needle, tmp_path, run_cli):
     (tmp_path / "afile.txt").write_text("keep me")
     proc = run_cli(*args, cwd=tmp_path)
     assert (tmp_path / "afile.txt").read_text() == "keep me"
@@ -125,7 +127,8 @@ def test_train_and_evaluate_mistakes_exit_2_with_one_line(args, needle, tmp_path
     assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").rglob("model.zip"))
 
 
-def test_bad_config_files(tmp_path):
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
+def test_bad_config_files(tmp_path, run_cli):
     bad_key = tmp_path / "a.yml"
     bad_key.write_text("env: CartPole-v1\nagnet: tabular\n")
     proc = run_cli("train", "--config", str(bad_key))
@@ -140,6 +143,7 @@ def test_bad_config_files(tmp_path):
     assert proc.returncode == 2 and "'params' must be a mapping" in proc.stderr
 
 
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
 @pytest.mark.parametrize(
     "args,needle",
     [
@@ -148,14 +152,15 @@ def test_bad_config_files(tmp_path):
         (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile"], "is a file; give a directory"),
     ],
 )
-def test_more_mistakes_exit_2(args, needle, tmp_path):
+def test_more_mistakes_exit_2(args, needle, tmp_path, run_cli):
     (tmp_path / "afile").write_text("x")
     proc = run_cli(*args, cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     assert needle in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_config_values_of_the_wrong_type(tmp_path):
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
+def test_config_values_of_the_wrong_type(tmp_path, run_cli):
     cfg = tmp_path / "c.yml"
     cfg.write_text("env: avq/GridMaze-v0\nagent: [avq]\n")
     proc = run_cli("train", "--config", str(cfg))
@@ -165,7 +170,8 @@ def test_config_values_of_the_wrong_type(tmp_path):
     assert proc.returncode == 2 and "'episodes' must be an integer >= 1" in proc.stderr
 
 
-def test_resume_mistakes_exit_2_and_leave_the_run_as_it_was(tmp_path):
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
+def test_resume_mistakes_exit_2_and_leave_the_run_as_it_was(tmp_path, run_cli):
     run = tmp_path / "run"
     proc = run_cli("train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "30",
                    "--checkpoint-every", "10", "--out", str(run), "--no-progress")

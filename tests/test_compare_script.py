@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = importlib.util.spec_from_file_location("compare", ROOT / "benchmarks" / "compare.py")
@@ -56,6 +57,8 @@ def test_a_tiny_run_writes_its_rows_table_and_figure(tmp_path):
     assert (tmp_path / "figures" / "compare_CartPole-v1.png").stat().st_size > 10_000
 
 
+# Slow (three runs of the script in new processes); the fast run keeps test_a_tiny_run_writes_its_rows_table_and_figure.
+@pytest.mark.slow
 def test_update_reruns_some_agents_and_keeps_the_rows_of_the_others(tmp_path):
     def compare(*args):
         out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",
@@ -95,6 +98,8 @@ def test_set_gives_every_agent_run_a_parameter_on_top_of_the_tasks_settings():
     assert json.dumps(compare.TASKS["Acrobot-v1"]) == settings
 
 
+# Slow (the script in new processes); the fast run keeps --set's parameters on top of the task's settings above.
+@pytest.mark.slow
 def test_set_is_read_as_avq_train_reads_it_and_never_writes_over_the_results(tmp_path):
     def run(*args):
         return subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",

@@ -306,6 +306,8 @@ def test_train_animate_is_not_for_resume(tmp_path, capsys):
     assert "drop --animate" in capsys.readouterr().err
 
 
+# Slow (two reproductions); the fast run keeps the GIF of avq train --animate on both mazes.
+@pytest.mark.slow
 def test_reproduce_animates_the_headline_agent_unless_asked_not_to(tmp_path, capsys):
     out = tmp_path / "rep"
     args = ["reproduce", "--seeds", "2", "--trials", "15", "--agents", "avq-paper,tabular", "--no-progress"]

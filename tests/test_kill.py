@@ -73,6 +73,9 @@ def _arrays(path: Path) -> dict[str, np.ndarray]:
         return {k: npz[k] for k in npz.files if k != "history"}
 
 
+# Slow (three processes, two killed); the fast run keeps the SIGKILL test above, test_resume.py's resume in a new
+# process and test_output_dirs.py's resume of a stopped run.
+@pytest.mark.slow
 def test_a_run_killed_twice_and_resumed_equals_an_uninterrupted_run(tmp_path):
     kwargs = dict(episodes=2500, seed=4, params={"fused": False}, checkpoint_every=50, progress=False)
     reference = train("avq/GridMaze-v0", "avq-paper", out=tmp_path / "straight", **kwargs)

@@ -211,6 +211,8 @@ def test_a_second_train_into_a_busy_directory_is_refused_until_the_first_is_kill
 
 
 @posix_only
+# Slow (a sweep in a new process); the fast run keeps the same lock on a busy avq train directory above.
+@pytest.mark.slow
 def test_a_busy_sweep_directory_refuses_a_second_sweep_and_a_run(tmp_path):
     (tmp_path / "s.yml").write_text(yaml.safe_dump(LONG_SWEEP))
     out = tmp_path / "sweep"
@@ -231,6 +233,8 @@ def test_a_busy_sweep_directory_refuses_a_second_sweep_and_a_run(tmp_path):
 
 
 @posix_only
+# Slow (a reproduction in a new process); the fast run keeps the same lock on a busy avq train directory above.
+@pytest.mark.slow
 def test_a_busy_reproduce_directory_is_refused_until_the_first_is_killed(tmp_path):
     cmd = ["reproduce", "--seeds", "1", "--agents", "tabular", "--no-progress", "--out", "rep"]
     first = start(*cmd, "--trials", "1000000", cwd=tmp_path)
@@ -248,6 +252,8 @@ def test_a_busy_reproduce_directory_is_refused_until_the_first_is_killed(tmp_pat
 
 # -- 15: Ctrl-C in a sweep ---------------------------------------------------------------------------
 
+# Slow (a sweep in a new process, interrupted); the fast run keeps test_sweep.py's killed-and-rerun sweep.
+@pytest.mark.slow
 @posix_only
 def test_ctrl_c_in_a_sweep_prints_the_command_that_continues_it(tmp_path):
     (tmp_path / "s.yml").write_text(yaml.safe_dump({**LONG_SWEEP, "seeds": 3, "episodes": 150}))

@@ -15,6 +15,7 @@ import yaml
 
 import avq
 from avq.sweep import plan_trials, read_sweep_config, report, run_sweep
+from conftest import CLI_RUNNERS
 
 CONFIG = {
     "env": "avq/GridMaze-v0",
@@ -130,14 +131,14 @@ def test_a_failing_trial_is_recorded_and_the_others_finish(tmp_path):
     ({"env": "NoSuchEnv-v9"}, "'env'"),
     ({"params": {"seed": 1}}, "cannot set seed"),
 ])
-def test_config_errors_name_the_key(change, needle, tmp_path):
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
+def test_config_errors_name_the_key(change, needle, tmp_path, run_cli):
     config = {k: v for k, v in {**CONFIG, **change}.items() if v is not None}
     with pytest.raises(ValueError, match=needle):
         read_sweep_config(config)
     cfg = tmp_path / "bad.yml"
     cfg.write_text(yaml.safe_dump(config))
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", "sweep", str(cfg), "--out", str(tmp_path / "o")],
-                          capture_output=True, text=True)
+    proc = run_cli("sweep", str(cfg), "--out", str(tmp_path / "o"))
     key = needle.split("'")[1] if "'" in needle else needle
     assert proc.returncode == 2 and key in proc.stderr and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
@@ -153,9 +154,10 @@ def test_config_errors_name_the_key(change, needle, tmp_path):
     (["sweep", "report", "nowhere"], "no results.csv"),
     (["sweep", "c.yml", "--out", "o", "--jobs", "0"], "--jobs must be >= 1"),
 ])
-def test_cli_mistakes_exit_2(args, needle, tmp_path):
+@pytest.mark.parametrize("run_cli", CLI_RUNNERS)
+def test_cli_mistakes_exit_2(args, needle, tmp_path, run_cli):
     (tmp_path / "c.yml").write_text(yaml.safe_dump(CONFIG))
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", *args], capture_output=True, text=True, cwd=tmp_path)
+    proc = run_cli(*args, cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     assert needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
@@ -166,6 +168,8 @@ def test_a_missing_backend_names_its_extra(monkeypatch, tmp_path):
         run_sweep(CONFIG, tmp_path / "o", backend="ray", progress=False)
 
 
+# Slow (starts a Ray cluster); the fast run keeps the same check on a Dask cluster below and the local sweep.
+@pytest.mark.slow
 def test_ray_cluster_gives_the_local_results(local_run, tmp_path):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)  # a real local cluster
