@@ -179,7 +179,7 @@ def test_bad_planning_options_get_clear_errors():
     with pytest.raises(ValueError, match="known_after must be an integer >= 1"):
         avq.make_agent("avq-plan", env, known_after=0)
     with pytest.raises(ValueError, match="'n_backups' is an option of planning.*'avq' has no model on avq/GridMaze-v0; "
-                                         "the agents that plan on avq/GridMaze-v0 are 'tabular-ps', 'grid-ps', 'avq-plan'$"):
+                                         "the agents that plan on avq/GridMaze-v0 are 'avq-plan', 'grid-ps', 'tabular-ps'$"):
         avq.make_agent("avq", env, n_backups=10)
     with pytest.raises(ValueError, match=r"split_threshold must be in \(0.0, inf\), not 0"):
         avq.make_agent("avq-plan", env, split_threshold=0)
