@@ -41,10 +41,10 @@ import numpy as np
 from numba import njit
 
 import avq
-from avq.quantizer import nearest_index
 from avq.agents._td import epsilon_greedy, greedy_ties, nth_tie
 from avq.envs.grid_maze import GridMaze, grid_move
 from avq.envs.layouts import load_layout
+from avq.quantizer import nearest_index
 
 
 class CopyMaze(GridMaze):

@@ -8,7 +8,12 @@ split_threshold 5, tol 1e-6; docs/results/planning.md).
 
     python scripts/tune_plan.py default,st10,tabular all 0,1,2,3,4,5,6,7,8,9
 """
-import csv, os, sys, time, json
+import csv
+import json
+import os
+import sys
+import time
+
 import numpy as np
 
 BUDGET = 300_000
@@ -41,6 +46,7 @@ def learn_until(agent, eval_env, budget, limit):
 
 def run(variant, agent_name, overrides, maze, seed):
     import gymnasium as gym
+
     import avq
     rows = mazes()[maze]
     limit = 4 * (len(rows) + len(rows[0]))

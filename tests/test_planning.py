@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import model as _model
-from avq.agents.plan import kernels as core
+from avq.agents.plan import kernels as core, model as _model
 from avq.agents.plan.model import BACKUPS, HEAP_N, KNOWN, Model
 
 

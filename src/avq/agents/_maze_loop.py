@@ -19,7 +19,8 @@ grows the agent's arrays when asked, and hands the episode back to the environme
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit

@@ -3,7 +3,8 @@ the action codebooks): the step loop that runs them from Python, and one ε-gree
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

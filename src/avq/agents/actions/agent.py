@@ -39,8 +39,8 @@ from avq._validate import (
 )
 from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.actions.codebook import merged_vector, plan_growth, plan_merges, uniform_actions
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.baselines.tiles import advance_tile_sarsa
 from avq.tilecoding import TileCoder
 
