@@ -364,10 +364,11 @@ LOW, HIGH = -10.0, 10.0
 obs_coord = st.one_of(st.integers(-20, 20).map(lambda k: k / 2.0),       # grid: exact distance ties
                       st.floats(LOW, HIGH, allow_nan=False))
 obs_st = st.tuples(obs_coord, obs_coord)
+reward_st = st.integers(-10, 10).map(float)
 
 
 @st.composite
-def episodes_st(draw, max_episodes=4, max_steps=12, reward=st.integers(-10, 10).map(float)):
+def episodes_st(draw, max_episodes=4, max_steps=12, reward=reward_st):
     out = []
     for _ in range(draw(st.integers(1, max_episodes))):
         start = draw(obs_st)

@@ -42,6 +42,7 @@ used instead; if none can be written, Numba's setting is left as it was and a wa
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import re
@@ -129,17 +130,15 @@ def prune(root: Path, prefix: str, current: str, keep: int = KEEP, grace_s: floa
     Returns the folders removed. Anything else in ``root`` is never touched; errors are ignored (a
     folder another process is removing, say).
     """
-    pattern = re.compile(re.escape(prefix) + "[0-9a-f]{%d}" % HASH_LEN)
+    pattern = re.compile(re.escape(prefix) + f"[0-9a-f]{{{HASH_LEN}}}")
     try:
         entries = [e for e in os.scandir(root) if pattern.fullmatch(e.name) and e.is_dir(follow_symlinks=False)]
     except OSError:
         return []
     used = []
     for e in entries:
-        try:
+        with contextlib.suppress(OSError):
             used.append((e.stat(follow_symlinks=False).st_mtime, e.name))
-        except OSError:
-            pass
     used.sort(reverse=True)
     now = time.time()
     removed = []

@@ -12,7 +12,7 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Union
+from typing import TypeAlias
 
 import numpy as np
 
@@ -58,7 +58,7 @@ MAPS: dict[str, list[str]] = {
     ],
 }
 
-LayoutSpec = Union[str, os.PathLike, Sequence[str]]
+LayoutSpec: TypeAlias = str | os.PathLike | Sequence[str]
 
 _ALLOWED = set("#.SG")
 
