@@ -14,6 +14,7 @@ import inspect
 import math
 import os
 import time
+from abc import abstractmethod
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -113,6 +114,12 @@ class BaseAgent:
         return f"{type(self).__name__}({args})"
 
     # -- to implement -----------------------------------------------------------------
+    @property
+    @abstractmethod
+    def n_cells(self) -> int:
+        """The cells the agent has now (the actions, for the agents that quantize actions: :attr:`size_unit`)."""
+        raise NotImplementedError
+
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         raise NotImplementedError
 
