@@ -4,7 +4,7 @@ and for ``AVQSarsa``'s ``scale="auto"`` the scale of unbounded dimensions estima
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from gymnasium import spaces
@@ -225,6 +225,10 @@ def per_dimension(name: str, value: Any, n: int) -> np.ndarray:
     return s
 
 
+@overload
+def normalize_obs_bounds(obs_bounds: None) -> None: ...
+@overload
+def normalize_obs_bounds(obs_bounds: Sequence[Any]) -> list[list[float] | None]: ...
 def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] | None] | None:
     """``obs_bounds`` as JSON-able lists of floats (so that it survives saving), checked for form.
 
