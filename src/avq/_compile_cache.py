@@ -80,7 +80,7 @@ def source_hash(package_dir: Path = _PACKAGE_DIR) -> str:
     h = hashlib.sha256()
     for part in (__version__, numba.__version__, numpy.__version__, sys.implementation.cache_tag or ""):
         h.update(part.encode() + b"\0")
-    files = []
+    files: list[str] = []
     for dirpath, dirnames, filenames in os.walk(package_dir):
         dirnames[:] = [d for d in dirnames if d != "__pycache__" and not d.startswith(".")]
         files.extend(os.path.join(dirpath, f) for f in filenames if f.endswith(".py"))
@@ -150,6 +150,15 @@ def prune(root: Path, prefix: str, current: str, keep: int = KEEP, grace_s: floa
     return removed
 
 
+def numba_cache_dir() -> str:
+    """Numba's cache setting in force (``numba.config.CACHE_DIR``): after :func:`configure`, the folder of
+    avq's current sources; ``""`` for Numba's default (a ``__pycache__`` beside each module)."""
+    from numba import config
+
+    # (numba.config makes its settings at run time, from the environment: mypy sees none of them)
+    return config.CACHE_DIR  # type: ignore[attr-defined]
+
+
 def configure() -> Path | None:
     """Point Numba's cache at the folder of avq's current sources (see the module's docstring).
 
@@ -158,7 +167,7 @@ def configure() -> Path | None:
     global _configured
     from numba import config
 
-    user_dir = config.CACHE_DIR or ""
+    user_dir = numba_cache_dir() or ""
     if _configured is not None and user_dir == _configured[0]:
         user_dir = _configured[1]  # configured before in this process: not the user's choice
     digest = source_hash()
@@ -167,7 +176,8 @@ def configure() -> Path | None:
         folder = base / (prefix + digest)
         if _writable(folder):
             prune(base, prefix, folder.name)
-            config.CACHE_DIR = str(folder)
+            # (a setting numba.config makes at run time: see numba_cache_dir)
+            config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
             _configured = (str(folder), user_dir)
             return folder
     warnings.warn(f"avq: no writable folder for Numba's compilation cache (tried {root} and {_fallback_root()}); "
