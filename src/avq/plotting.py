@@ -155,7 +155,7 @@ def _walk_label(walk: GreedyWalk) -> str:
         return f"{where}: reaches the goal in {walk.steps} steps"
     if walk.outcome == "bump":
         return f"{where}: runs into a wall at step {walk.steps}, and again for ever (x)"
-    if walk.outcome == "loop":
+    if walk.outcome == "loop" and walk.loop_from is not None:  # (greedy_walk gives a loop's start)
         return f"{where}: goes round a loop of {len(walk.positions) - 1 - walk.loop_from} squares for ever (dashed)"
     return f"{where}: not at the goal after {walk.steps} steps"
 
@@ -206,7 +206,7 @@ def plot_partitions(
         _maze_axes(ax, layout, _cell_image(layout, view, colours), _borders(layout, view), fontsize=8)
         placed, anchors, directions = _cell_arrows(view)
         numbered = view.vectors is not None
-        if numbered:
+        if view.vectors is not None:
             ax.plot(view.vectors[:, 0], view.vectors[:, 1], "o", color="k", ms=3, ls="none", zorder=4,
                     label="codebook vector")
             for c, (ax_x, ax_y) in zip(placed, anchors):  # the number in the square's upper left corner
@@ -247,7 +247,7 @@ def _colour_ids(views: Sequence[PartitionView]) -> list[np.ndarray]:
             continue
         vec = view.vectors
         new = np.full(len(vec), -1)
-        if prev_vectors is not None and len(prev_vectors) and len(vec):
+        if prev_vectors is not None and prev_ids is not None and len(prev_vectors) and len(vec):
             d = ((vec[:, None, :] - prev_vectors[None, :, :]) ** 2).sum(axis=2)
             nearest_old, nearest_new = d.argmin(axis=1), d.argmin(axis=0)
             mutual = nearest_new[nearest_old] == np.arange(len(vec))
@@ -327,7 +327,8 @@ def animate_partition(
     text = ax.set_title(heading(views[0]), fontsize=11, y=1.0)
     # Room for a two-line title; no layout engine, which would lay the figure out again for every frame.
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=1 - 0.55 / fig.get_figheight())
-    size = tuple(int(v * dpi) for v in fig.get_size_inches())
+    width, height = fig.get_size_inches()
+    size = (int(width * dpi), int(height * dpi))
     frames = []
     arrows = None
     for view, colour_ids in zip(views, ids):
@@ -342,7 +343,8 @@ def animate_partition(
         text.set_text(heading(view))
         buf = io.BytesIO()
         fig.savefig(buf, format="rgba", dpi=dpi)
-        frame = Image.frombuffer("RGBA", size, buf.getbuffer(), "raw", "RGBA", 0, 1).convert("RGB")
+        # (Pillow's annotation leaves out memoryview, which frombuffer reads without a copy)
+        frame = Image.frombuffer("RGBA", size, buf.getbuffer(), "raw", "RGBA", 0, 1).convert("RGB")  # type: ignore[arg-type]
         frames.append(_palette_image(frame))
     plt.close(fig)
     gif = io.BytesIO()
@@ -401,7 +403,7 @@ def learning_curves_figure(
     ax.set_title(f"{title or 'learning curves'}\n({spread}{smoothing})", fontsize=10)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    if two:
+    if cells:  # (two)
         ax2 = axes[0, 1]
         for name, runs in cells.items():
             n = min(len(r) for r in runs)
