@@ -41,10 +41,10 @@ import numpy as np
 from numba import njit
 
 import avq
-from avq.quantizer import nearest_index
 from avq.agents._td import epsilon_greedy, greedy_ties, nth_tie
 from avq.envs.grid_maze import GridMaze, grid_move
 from avq.envs.layouts import load_layout
+from avq.quantizer import nearest_index
 
 
 class CopyMaze(GridMaze):
@@ -71,7 +71,7 @@ def _reference_run(n_steps, seed, walls, starts, gx, gy):
         s = y * w + x
         a = np.random.randint(4) if np.random.random() < eps else np.argmax(q[s])
         nv = 0
-        for t in range(100):
+        for _t in range(100):
             x, y, r, term, _ = grid_move(walls, x, y, a, gx, gy)
             steps += 1
             s2 = y * w + x

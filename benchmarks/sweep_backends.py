@@ -45,10 +45,7 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     grid = {"alpha": [0.1, 0.3], "epsilon": [0.05, 0.1], "d_min": [0.05, 0.1]}
-    if args.quick:
-        cfg = config(30, 2, grid)
-    else:
-        cfg = config(300, 10, grid)
+    cfg = config(30, 2, grid) if args.quick else config(300, 10, grid)
     n_trials = 8 * cfg["seeds"]
     print(f"machine: {os.cpu_count()} cores; avq {avq.__version__}; {n_trials} trials of {cfg['episodes']} "
           f"episodes on RobotMaze; {args.jobs} workers")
@@ -73,7 +70,8 @@ def main() -> None:
             if reference is None:
                 reference = rows
             same = rows == reference
-            trial_s = sum(float(r["wall_s"]) for r in csv.DictReader(open(out / "results.csv", encoding="utf-8")))
+            with open(out / "results.csv", encoding="utf-8") as f:
+                trial_s = sum(float(r["wall_s"]) for r in csv.DictReader(f))
             print(f"   {label:<32} {times[label]:>7.1f} s   (sum of trial times {trial_s:.1f} s)   "
                   f"results {'identical' if same else 'DIFFERENT'}")
     base = times.get("one process, one after another")

@@ -8,7 +8,12 @@ split_threshold 5, tol 1e-6; docs/results/planning.md).
 
     python scripts/tune_plan.py default,st10,tabular all 0,1,2,3,4,5,6,7,8,9
 """
-import csv, os, sys, time, json
+import csv
+import json
+import os
+import sys
+import time
+
 import numpy as np
 
 BUDGET = 300_000
@@ -34,13 +39,15 @@ def learn_until(agent, eval_env, budget, limit):
     while agent.num_timesteps < budget:
         agent.learn(total_episodes=chunk)
         s = avq.evaluate_maze(agent, eval_env, max_steps=limit)["success_rate"]
-        if s >= 0.95: return True, s
+        if s >= 0.95:
+            return True, s
         chunk = min(2 * chunk, 50)
     return False, s
 
 
 def run(variant, agent_name, overrides, maze, seed):
     import gymnasium as gym
+
     import avq
     rows = mazes()[maze]
     limit = 4 * (len(rows) + len(rows[0]))
@@ -77,15 +84,18 @@ def save(recs):
     new = not os.path.exists(OUT)
     with open(OUT, "a", newline="") as f:
         w = csv.DictWriter(f, fieldnames=FIELDS)
-        if new: w.writeheader()
-        for r in recs: w.writerow({k: r.get(k, "") for k in FIELDS})
+        if new:
+            w.writeheader()
+        for r in recs:
+            w.writerow({k: r.get(k, "") for k in FIELDS})
 
 
 def main(jobs):
     from joblib import Parallel, delayed
     par = Parallel(n_jobs=2, return_as="generator_unordered")
     for rec in par(delayed(run)(*j) for j in jobs):
-        save([rec]); print(rec, flush=True)
+        save([rec])
+        print(rec, flush=True)
 
 
 ALL_MAZES = ["lau2002_k1", "lau2002_k2", "lau2002_k4", "rand22", "rand42"]

@@ -411,8 +411,9 @@ def test_validators_name_the_parameter_and_the_value():
 
 
 def test_the_defaults_files_resolve_bases_and_carry_a_reason_and_a_link(tmp_path):
-    import yaml
     from importlib import resources
+
+    import yaml
 
     from avq.agents.registry import DEFAULTS, ENTRIES
 

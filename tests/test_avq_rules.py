@@ -9,8 +9,8 @@ import pytest
 
 from avq import AVQSarsa
 from avq._random import RawStream
-from avq.agents.avq_sarsa import kernels as core
 from avq.agents._td import decide, sarsa_lambda, sarsa_td_error, trace_update
+from avq.agents.avq_sarsa import kernels as core
 from avq.rules import APPEND, CHI, KEEP, collision_rule, merge_profiles, similar_profiles
 
 from conftest import ScriptedEnv
@@ -428,8 +428,8 @@ def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
 
 
 def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
-    from avq.quantizer import mutual_nearest_pairs_kernel
     from avq.agents.avq_sarsa import kernels as core
+    from avq.quantizer import mutual_nearest_pairs_kernel
 
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     one = np.ones(2)

@@ -8,7 +8,6 @@ import pytest
 from avq import AGENTS, TabularSarsa
 from avq.checks import CHECKS, check_agent
 
-
 #: Every agent for Discrete actions (those for Box actions are checked in test_actions.py).
 DISCRETE = sorted(n for n in AGENTS if n not in ("avq-actions", "uniform-actions"))
 

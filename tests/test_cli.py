@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from avq.cli import main
+
 from conftest import CLI_RUNNERS
 
 

@@ -11,6 +11,7 @@ import yaml
 
 import avq
 from avq.cli import main
+
 from conftest import CLI_RUNNERS
 
 

@@ -65,7 +65,6 @@ def test_the_site_builds_strict_with_its_sections(site):
 def test_the_api_reference_has_the_public_classes_and_no_private_module(site):
     agents = (site / "reference" / "api" / "agents.html").read_text(encoding="utf-8")
     import avq.agents
-
     import avq.agents.callbacks
 
     callbacks = (site / "reference" / "api" / "callbacks.html").read_text(encoding="utf-8")

@@ -7,7 +7,6 @@ from gymnasium.wrappers import RecordEpisodeStatistics
 
 import avq
 
-
 #: The general Sarsa(λ) defaults (``avq-sarsa``: the value-change trigger, the maze options at the class's
 #: defaults), with the budget of before.
 GENERAL = ("avq-sarsa", {"max_cells": 10_000})

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import model as _model
-from avq.agents.plan import kernels as core
+from avq.agents.plan import kernels as core, model as _model
 
 from conftest import ScriptedEnv
 

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import model as _model
-from avq.agents.plan import kernels as core
+from avq.agents.plan import kernels as core, model as _model
 from avq.agents.plan.model import BACKUPS, HEAP_N, KNOWN, Model
 
 
@@ -200,9 +199,12 @@ def plan_agent(**kw):
 
 def remember(agent, xs, a, x, R, disc=1.0):
     """Store a transition from xs to x (cells by the current codebook) in the memory and the model."""
-    V, n = agent._V, agent._xs.shape[0]
+    V = agent._V
     size = int(agent._S[core.SIZE])
-    cell = lambda p: int(np.argmin(((V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
+
+    def cell(p):
+        return int(np.argmin(((V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
+
     i, j = cell(xs), cell(x)
     t = int(agent._S[core.MEM_POS])
     core.remember(agent._IP, agent._S, np.asarray(xs, float), np.asarray(x, float), agent._mem_x, agent._mem_i,
@@ -306,7 +308,9 @@ def test_split_cell_refuses_mean_starts_within_d_min_of_each_other():
 
 
 def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
-    env = lambda: gym.make("avq/GridMaze-v0")
+    def env():
+        return gym.make("avq/GridMaze-v0")
+
     agent = avq.make_agent("avq-plan", env(), seed=0)
     for _ in range(20):
         agent.learn(total_episodes=10)

@@ -22,9 +22,8 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from avq import AVQSarsa
-from avq.quantizer import compact_rows, merge_kernel, mutual_nearest_pairs_kernel
 from avq.agents.avq_sarsa import kernels as core
-from avq.quantizer import _TREE_THRESHOLD, Codebook
+from avq.quantizer import _TREE_THRESHOLD, Codebook, compact_rows, merge_kernel, mutual_nearest_pairs_kernel
 from avq.rules import mean_square_difference, merge_profiles
 
 from conftest import ScriptedEnv
@@ -365,10 +364,11 @@ LOW, HIGH = -10.0, 10.0
 obs_coord = st.one_of(st.integers(-20, 20).map(lambda k: k / 2.0),       # grid: exact distance ties
                       st.floats(LOW, HIGH, allow_nan=False))
 obs_st = st.tuples(obs_coord, obs_coord)
+reward_st = st.integers(-10, 10).map(float)
 
 
 @st.composite
-def episodes_st(draw, max_episodes=4, max_steps=12, reward=st.integers(-10, 10).map(float)):
+def episodes_st(draw, max_episodes=4, max_steps=12, reward=reward_st):
     out = []
     for _ in range(draw(st.integers(1, max_episodes))):
         start = draw(obs_st)

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.callbacks import CheckpointCallback
 from avq._io import ProgressLog
+from avq.agents.callbacks import CheckpointCallback
 
 CASES = [  # (agent, env id, episodes before the stop, episodes after, extra parameters)
     ("avq-paper", "avq/GridMaze-v0", 500, 500, {}),           # fused loop

@@ -15,6 +15,7 @@ import yaml
 
 import avq
 from avq.sweep import plan_trials, read_sweep_config, report, run_sweep
+
 from conftest import CLI_RUNNERS
 
 CONFIG = {

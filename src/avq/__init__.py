@@ -17,12 +17,26 @@ from avq import _compile_cache
 
 _compile_cache.configure()
 
-from avq._version import __version__  # noqa: E402
-from avq import envs  # noqa: F401  (registers the environments)
-from avq.agents import (AGENTS, ActionCodebookSarsa, AVQSarsa, BaseAgent, CheckpointCallback, GridSarsa, PlanningAVQ,
-                        PrioritizedSweeping, TabularSarsa, TileSarsa, load, make_agent)
+from avq import (
+    checks,  # noqa: F401  (avq.checks.check_agent, the conformance checker, after ``import avq``)
+    envs,  # noqa: F401  (registers the environments)
+)
+from avq._version import __version__
+from avq.agents import (
+    AGENTS,
+    ActionCodebookSarsa,
+    AVQSarsa,
+    BaseAgent,
+    CheckpointCallback,
+    GridSarsa,
+    PlanningAVQ,
+    PrioritizedSweeping,
+    TabularSarsa,
+    TileSarsa,
+    load,
+    make_agent,
+)
 from avq.evaluation import evaluate_maze
-from avq import checks  # noqa: F401  (avq.checks.check_agent, the conformance checker, after ``import avq``)
 from avq.quantizer import Codebook
 from avq.sweep import run_sweep
 

@@ -42,6 +42,7 @@ used instead; if none can be written, Numba's setting is left as it was and a wa
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import re
@@ -79,7 +80,7 @@ def source_hash(package_dir: Path = _PACKAGE_DIR) -> str:
     h = hashlib.sha256()
     for part in (__version__, numba.__version__, numpy.__version__, sys.implementation.cache_tag or ""):
         h.update(part.encode() + b"\0")
-    files = []
+    files: list[str] = []
     for dirpath, dirnames, filenames in os.walk(package_dir):
         dirnames[:] = [d for d in dirnames if d != "__pycache__" and not d.startswith(".")]
         files.extend(os.path.join(dirpath, f) for f in filenames if f.endswith(".py"))
@@ -129,17 +130,15 @@ def prune(root: Path, prefix: str, current: str, keep: int = KEEP, grace_s: floa
     Returns the folders removed. Anything else in ``root`` is never touched; errors are ignored (a
     folder another process is removing, say).
     """
-    pattern = re.compile(re.escape(prefix) + "[0-9a-f]{%d}" % HASH_LEN)
+    pattern = re.compile(re.escape(prefix) + f"[0-9a-f]{{{HASH_LEN}}}")
     try:
         entries = [e for e in os.scandir(root) if pattern.fullmatch(e.name) and e.is_dir(follow_symlinks=False)]
     except OSError:
         return []
     used = []
     for e in entries:
-        try:
+        with contextlib.suppress(OSError):
             used.append((e.stat(follow_symlinks=False).st_mtime, e.name))
-        except OSError:
-            pass
     used.sort(reverse=True)
     now = time.time()
     removed = []
@@ -151,6 +150,15 @@ def prune(root: Path, prefix: str, current: str, keep: int = KEEP, grace_s: floa
     return removed
 
 
+def numba_cache_dir() -> str:
+    """Numba's cache setting in force (``numba.config.CACHE_DIR``): after :func:`configure`, the folder of
+    avq's current sources; ``""`` for Numba's default (a ``__pycache__`` beside each module)."""
+    from numba import config
+
+    # (numba.config makes its settings at run time, from the environment: mypy sees none of them)
+    return config.CACHE_DIR  # type: ignore[attr-defined]
+
+
 def configure() -> Path | None:
     """Point Numba's cache at the folder of avq's current sources (see the module's docstring).
 
@@ -159,7 +167,7 @@ def configure() -> Path | None:
     global _configured
     from numba import config
 
-    user_dir = config.CACHE_DIR or ""
+    user_dir = numba_cache_dir() or ""
     if _configured is not None and user_dir == _configured[0]:
         user_dir = _configured[1]  # configured before in this process: not the user's choice
     digest = source_hash()
@@ -168,7 +176,8 @@ def configure() -> Path | None:
         folder = base / (prefix + digest)
         if _writable(folder):
             prune(base, prefix, folder.name)
-            config.CACHE_DIR = str(folder)
+            # (a setting numba.config makes at run time: see numba_cache_dir)
+            config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
             _configured = (str(folder), user_dir)
             return folder
     warnings.warn(f"avq: no writable folder for Numba's compilation cache (tried {root} and {_fallback_root()}); "

@@ -11,7 +11,7 @@ import errno
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -102,10 +102,9 @@ def hold_directory(directory: str | os.PathLike, lock_file: str | os.PathLike | 
     except OSError as exc:
         raise WriteError(lock_file.parent, exc) from exc  # (the directory, not the hidden file)
     try:
-        try:
+        # the pid is for messages only (and Windows refuses writes to a locked file)
+        with suppress(OSError):
             lock_file.write_text(f"{os.getpid()}\n", encoding="ascii")
-        except OSError:
-            pass  # the pid is for messages only (and Windows refuses writes to a locked file)
         yield
     finally:
         lock.release()

@@ -24,6 +24,9 @@ A source of draws is either a ``Generator`` (inside a fused loop) or the tuple
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any, cast
+
 import numpy as np
 from numba import njit, types
 from numba.extending import overload
@@ -136,7 +139,7 @@ class RawStream:
         self.size = int(size)
         self.raw = np.zeros(0, dtype=np.uint64)
         self.cursor = np.zeros(3, dtype=np.int64)
-        self._start: dict | None = None  # the generator's state when the buffer was filled
+        self._start: Mapping[str, Any] | None = None  # the generator's state when the buffer was filled
 
     @property
     def src(self) -> tuple[np.ndarray, np.ndarray]:
@@ -160,8 +163,8 @@ class RawStream:
             return
         bg = self.rng.bit_generator
         bg.state = self._start
-        bg.advance(int(self.cursor[POS]))  # (advance clears the kept half: set it after)
-        state = bg.state
+        cast(np.random.PCG64, bg).advance(int(self.cursor[POS]))  # (advance clears the kept half: set it after)
+        state = dict(bg.state)  # (a new dict each time, typed as a read-only Mapping)
         state["has_uint32"], state["uinteger"] = int(self.cursor[HAS32]), int(self.cursor[HALF])
         bg.state = state
         self._start = None

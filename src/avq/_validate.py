@@ -8,8 +8,8 @@ not 1.5``. A bad parameter is a ``ValueError`` everywhere in avq, whatever its t
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any, Callable, TypeVar
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
 
 import numpy as np
 

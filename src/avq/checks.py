@@ -26,7 +26,7 @@ from avq.agents.registry import AGENTS, make_agent
 __all__ = ["check_agent", "CHECKS"]
 
 #: Parameters every agent takes, with a value outside the allowed range.
-_BAD_VALUES = {"alpha": -0.5, "gamma": 1.5, "epsilon": 2.0, "lam": -1.0, "seed": -1}
+_BAD_VALUES: dict[str, Any] = {"alpha": -0.5, "gamma": 1.5, "epsilon": 2.0, "lam": -1.0, "seed": -1}
 
 
 class _Case:
@@ -129,10 +129,13 @@ def check_predict(case: _Case) -> None:
     obs = _observations(case)
     space = agent.env.action_space
     batch, state = agent.predict(obs)
+    assert isinstance(batch, np.ndarray), "a batch's predictions are not an array"
+    assert space.shape is not None, "an action space without a shape"
     assert state is None and batch.shape == (len(obs), *space.shape)
     if isinstance(space, spaces.Discrete):
         assert batch.dtype == np.int64
     explore, _ = agent.predict(obs, deterministic=False)
+    assert isinstance(explore, np.ndarray), "a batch's predictions are not an array"
     for k in range(len(obs)):
         single, _ = agent.predict(obs[k])
         assert space.contains(single) and space.contains(explore[k]), "an action outside the action space"

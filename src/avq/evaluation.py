@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -56,7 +57,7 @@ def _robot_moves(grid, xs, ys, actions, move, radius, gx, gy, terminated):
         xs[k], ys[k], _, terminated[k], _ = robot_move(grid, xs[k], ys[k], actions[k], move, radius, gx, gy)
 
 
-def _robot_walks(agent: BaseAgent, dyn: RobotDynamics, starts: list[tuple[float, float]], limit: int):
+def _robot_walks(agent: BaseAgent, dyn: RobotDynamics, starts: Sequence[tuple[float, ...]], limit: int):
     """All greedy walks of a noise-free RobotMaze in lockstep: one batched ``predict`` per step."""
     xs = np.array([p[0] for p in starts], dtype=np.float64)
     ys = np.array([p[1] for p in starts], dtype=np.float64)
@@ -118,7 +119,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
             (a layout of another size, say): the rule of :func:`avq.load`, in
             :func:`avq.agents.save_util.check_env_fits`.
     """
-    base = env.unwrapped
+    base: Any = env.unwrapped  # (a maze: duck-typed by its layout and, for a continuous one, start_positions)
     layout = getattr(base, "layout", None)
     if layout is None or not hasattr(layout, "distances"):
         raise ValueError(
@@ -135,7 +136,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         shortest = [int(layout.distances[y, x]) for x, y in starts]
         default_limit = _step_limit(env)
     limit = int(max_steps) if max_steps is not None else default_limit
-    outcomes = []
+    outcomes: list[dict[str, Any]] = []
     if isinstance(base, GridMaze) and base.dynamics.slip == 0.0:
         # The greedy policy is a function of the position: ask for every position at once and walk
         # the maze with its own compiled move (the same as stepping the environment).
@@ -257,7 +258,7 @@ def evaluate_policy(
             bar.update(1)
     if bar is not None:
         bar.close()
-    rate = None if any(s is None for s in successes) else float(np.mean(successes))
+    rate = None if any(s is None for s in successes) else float(np.mean(cast(list[bool], successes)))
     return {
         "episodes": int(n_episodes),
         "mean_return": float(np.mean(returns)),

@@ -106,7 +106,7 @@ def cell_anchors(squares: np.ndarray, cells: np.ndarray) -> np.ndarray:
     at = {(x, y): i for i, (x, y) in enumerate(zip(xs, ys))}
     raster = np.lexsort((squares[:, 0], squares[:, 1])).argsort().tolist()  # each square's place in row-major order
     part = [-1] * len(cs)
-    parts = []  # (cell, first square, squares): one per connected part, found from its first square
+    parts: list[tuple[int, int, list[int]]] = []  # (cell, first square, squares): one per connected part, found from its first square
     for i in range(len(cs)):  # (a flood fill: faster than labelling the grid once per cell, as it was)
         if part[i] >= 0:
             continue
@@ -124,9 +124,9 @@ def cell_anchors(squares: np.ndarray, cells: np.ndarray) -> np.ndarray:
         parts.append((cs[i], raster[own[0]], own))
     rows = []
     for c, _, own in sorted(parts, key=lambda p: p[:2]):  # by cell, then by part (its first square, row-major)
-        own = np.array(own)
-        xy = squares[own].astype(float)
-        rows.append((c, own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
+        at_own = np.array(own)
+        xy = squares[at_own].astype(float)
+        rows.append((c, at_own[np.argmin(((xy - xy.mean(axis=0)) ** 2).sum(axis=1))]))
     return np.array(rows, dtype=np.int64).reshape(-1, 2)
 
 
@@ -134,8 +134,9 @@ def partition_view(agent: BaseAgent, maze: MazeSquares) -> PartitionView:
     """The agent's partition of the maze's squares now (see :class:`PartitionView`)."""
     actions, _ = agent.predict(maze.observations, deterministic=True)
     actions = np.asarray(actions, dtype=np.int64).reshape(-1)
-    if has_partition(agent):
-        cells = np.asarray(agent.cells(maze.observations), dtype=np.int64)
+    cells_of = getattr(agent, "cells", None)
+    if callable(cells_of):  # (has_partition)
+        cells = np.asarray(cells_of(maze.observations), dtype=np.int64)
         n_cells = int(agent.n_cells)
     else:
         cells = np.arange(len(maze.squares))
@@ -184,7 +185,7 @@ def greedy_walk(agent: BaseAgent, env: gym.Env, start: tuple[float, float], max_
     is) or a position seen before means it never reaches the goal: the walk stops there and
     says so (see :class:`GreedyWalk`).
     """
-    base = env.unwrapped
+    base: Any = env.unwrapped  # (a maze: GridMaze, RobotMaze or one with their position and dynamics)
     obs, _ = base.reset(options={"start": start})
     repeatable = _repeatable(base)
     here = tuple(base.position)

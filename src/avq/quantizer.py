@@ -18,11 +18,10 @@ scale ``s`` (docs/explanation/paper.md#setting)::
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
-
 
 __all__ = ["Codebook", "append_vector", "compact_rows", "merge_kernel", "mutual_nearest_pairs_kernel",
            "nearest_batch_kernel", "nearest_index", "nearest_pairs_kernel", "neighbours_kernel", "scaled_distance"]
@@ -360,7 +359,7 @@ class Codebook:
         self._data = data
 
     @classmethod
-    def from_vectors(cls, vectors: np.ndarray, scale: float | Sequence[float] | np.ndarray = 1.0) -> "Codebook":
+    def from_vectors(cls, vectors: np.ndarray, scale: float | Sequence[float] | np.ndarray = 1.0) -> Codebook:
         """A codebook holding a copy of ``vectors`` (``(p, n)``)."""
         vectors = np.asarray(vectors, dtype=np.float64)
         cb = cls(vectors.shape[1], scale, capacity=max(len(vectors), 1))

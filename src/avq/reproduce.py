@@ -7,16 +7,17 @@ import os
 import shutil
 import time
 import uuid
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from avq._io import atomic_write_bytes, hold_directory, make_dirs
-from avq.agents.base import Callback
+from avq.agents.base import BaseAgent, Callback
 from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.envs.layouts import Layout, LayoutSpec, load_layout
 from avq.evaluation import evaluate_maze
@@ -303,14 +304,19 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
     ranked = sorted((int(s) for s in seeds), key=lambda s: -by[(headline, s)].success_rate)  # stable: seed order
     shown = [ranked[0]] if by[(headline, ranked[0])].success_rate == by[(headline, ranked[-1])].success_rate \
         else [ranked[0], ranked[-1]]
-    models = [load(by[(headline, s)].model_path, env=env) for s in shown]
+    def saved(name: str, seed: int) -> BaseAgent:
+        path = by[(name, seed)].model_path
+        assert path is not None  # (every run here saves its model, in models/)
+        return load(path, env=env)
+
+    models = [saved(headline, s) for s in shown]
     which = [""] if len(shown) == 1 else [f" (best of {len(seeds)} seeds)", f" (worst of {len(seeds)} seeds)"]
     plot_partitions(models, env, out / "partition.png",
                     titles=[title(headline, s, m.n_cells, w) for s, m, w in zip(shown, models, which)])
     # partition-NAME.png: every other AVQ agent's first seed.
     for name in avq_names:
         if name != headline:
-            model = load(by[(name, first)].model_path, env=env)
+            model = saved(name, first)
             plot_partition(model, env, out / f"partition-{name}.png", title=title(name, first, model.n_cells))
     from avq.figure_data import has_partition
 
@@ -329,11 +335,10 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
 
 def _kernels_cached() -> bool:
     """Whether Numba's on-disk cache already holds the fused maze loop (else the first run compiles)."""
-    import numba
-
+    from avq._compile_cache import numba_cache_dir
     from avq.agents.avq_sarsa import fused
 
-    cache_dir = Path(numba.config.CACHE_DIR or Path(fused.__file__).parent / "__pycache__")
+    cache_dir = Path(numba_cache_dir() or Path(fused.__file__).parent / "__pycache__")
     return cache_dir.is_dir() and any(cache_dir.rglob("fused.run_*.nbi"))
 
 

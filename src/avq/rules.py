@@ -39,7 +39,7 @@ def may_append(dist_to_nearest: float, d_min: float) -> bool:
 
 
 @njit(cache=True, inline="always")
-def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> str:
+def collision_rule(dist_to_own: float, dist_to_nearest: float, d_min: float) -> int:
     """The paper (Growing, docs/explanation/paper.md#growing), on a collision at ``x`` while in cell ``i``.
 
     Args:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -97,7 +98,8 @@ def train(
             "agent": agent,
             "params": _plain(agent_params),
             "seed": seed,
-            **({"episodes": int(episodes)} if episodes is not None else {"timesteps": int(timesteps)}),
+            # (exactly one of episodes and timesteps: checked above)
+            **({"episodes": int(episodes)} if episodes is not None else {"timesteps": int(cast(int, timesteps))}),
             "checkpoint_every": int(checkpoint_every),
             "avq_version": __version__,
         }
@@ -255,14 +257,16 @@ def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | Non
             raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
         model = load(model_path, env=env)
     result = evaluate_policy(model, env, n_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress)
+    spec = env.spec
+    assert spec is not None  # (made from its id: by make_env, or by load from the id the file records)
     report: dict[str, Any] = {
-        "run": str(run_dir), "env": env.spec.id, "agent": agent, "n_cells": int(model.n_cells),
+        "run": str(run_dir), "env": spec.id, "agent": agent, "n_cells": int(model.n_cells),
         "size_unit": model.size_unit,
         **{k: result[k] for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate", "capped",
                                   "max_steps")},
     }
     if hasattr(env.unwrapped, "layout"):
-        maze = evaluate_maze(model, gym.make(env.spec))  # (a second env like the first)
+        maze = evaluate_maze(model, gym.make(spec))  # (a second env like the first)
         report["maze_success_rate"] = maze["success_rate"]
         report["maze_path_ratio"] = maze["path_ratio"]
     return report

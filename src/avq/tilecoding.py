@@ -32,7 +32,7 @@ they fall in tiles beyond the edge, which get indices like any other.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

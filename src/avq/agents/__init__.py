@@ -6,16 +6,15 @@ The agents by name, with their rules and defaults: `avq.agents.registry`. The mo
 
 from avq.agents import registry, save_util  # noqa: F401  (public: the names and defaults, the model file)
 from avq.agents.actions.agent import ActionCodebookSarsa
-from avq.agents.plan.agent import PlanningAVQ
 from avq.agents.avq_sarsa.agent import AVQSarsa
-from avq.agents.base import BaseAgent, NotFiniteError
-from avq.agents.callbacks import BaseCallback, CallbackList, CheckpointCallback, ProgressBarCallback
+from avq.agents.base import BaseAgent, NotFiniteError, load
 from avq.agents.baselines.grid import GridSarsa
-from avq.agents.registry import AGENTS, make_agent
-from avq.agents.base import load
-from avq.agents.plan.sweeping import PrioritizedSweeping
 from avq.agents.baselines.tabular import TabularSarsa
 from avq.agents.baselines.tiles import TileSarsa
+from avq.agents.callbacks import BaseCallback, CallbackList, CheckpointCallback, ProgressBarCallback
+from avq.agents.plan.agent import PlanningAVQ
+from avq.agents.plan.sweeping import PrioritizedSweeping
+from avq.agents.registry import AGENTS, make_agent
 
 __all__ = ["AVQSarsa", "PlanningAVQ", "TabularSarsa", "PrioritizedSweeping", "GridSarsa", "TileSarsa", "ActionCodebookSarsa",
            "BaseAgent", "NotFiniteError", "AGENTS", "make_agent", "load", "registry", "save_util", "BaseCallback",

@@ -77,7 +77,7 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
         return self._data[: self._n].copy()
 
     @classmethod
-    def from_array(cls, data: np.ndarray) -> "EpisodeHistory":
+    def from_array(cls, data: np.ndarray) -> EpisodeHistory:
         """The history held in ``data`` (as returned by :meth:`as_array`), checked."""
         data = np.asarray(data)
         if data.ndim != 2 or data.shape[1] != len(HISTORY_FIELDS) or not np.issubdtype(data.dtype, np.floating):

@@ -19,7 +19,8 @@ grows the agent's arrays when asked, and hands the episode back to the environme
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -92,8 +93,9 @@ def maze_arguments(maze: CompiledMaze) -> Maze:
 @njit(cache=True, inline="always")
 def borrowed_maze(mz: Maze) -> Maze:
     """``mz`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for the loop's own use."""
-    return Maze(mz.robot, borrowed(mz.walls), mz.gx, mz.gy, borrowed(mz.starts), mz.fixed, mz.move, mz.radius,
-                mz.slip, borrowed(mz.dirs), mz.sonar_range, mz.observe_sonar, mz.max_episode_steps)
+    # (Numba's annotation of an @intrinsic's call keeps the typing context, which compiled callers do not pass)
+    return Maze(mz.robot, borrowed(mz.walls), mz.gx, mz.gy, borrowed(mz.starts), mz.fixed, mz.move, mz.radius,  # type: ignore[call-arg]
+                mz.slip, borrowed(mz.dirs), mz.sonar_range, mz.observe_sonar, mz.max_episode_steps)  # type: ignore[call-arg]
 
 
 def drive(maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int,

@@ -16,8 +16,9 @@ a constant index, as it did the hand-kept integer constants these replace.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from enum import IntEnum
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 

@@ -3,7 +3,8 @@ the action codebooks): the step loop that runs them from Python, and one ε-gree
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -16,8 +17,12 @@ __all__ = ["PerStepAgent"]
 class PerStepAgent(BaseAgent):
     """A :class:`~avq.agents.BaseAgent` that takes one decision per primitive step."""
 
+    epsilon: float  # the exploration rate of :meth:`_decide`
+    _ep_steps: int  # the steps and the return of the episode so far
+    _ep_return: float
+
     def _sarsa_steps(self, max_steps: int, s: Any, a: int, update: Callable[[Any, int, float, Any, bool], tuple],
-                     env_actions: np.ndarray | None = None) -> tuple[Any, int, int, bool]:
+                     env_actions: Sequence[Any] | np.ndarray | None = None) -> tuple[Any, int, int, bool]:
         """The primitive steps of an agent that decides at every step (``tabular``, ``grid``, the tile coders).
 
         Steps the environment with action ``a`` (sent as ``env_actions[a]`` if given) at most

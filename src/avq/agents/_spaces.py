@@ -3,7 +3,8 @@ and for ``AVQSarsa``'s ``scale="auto"`` the scale of unbounded dimensions estima
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any, overload
 
 import numpy as np
 from gymnasium import spaces
@@ -145,7 +146,7 @@ def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
     return s * factor, estimated, factor
 
 
-def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: "RunningSpread",
+def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: RunningSpread,
                   factor: np.ndarray | float = 1.0) -> bool:
     """``scale="auto"`` (or ``"spread"``) brought up to date in place: each estimated dimension becomes
     ``AUTO_SCALE_STDS`` standard deviations of the observations counted (where that is > 0) times ``factor``,
@@ -159,7 +160,7 @@ def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarra
     return True
 
 
-def scale_state(scale: np.ndarray, spread: "RunningSpread") -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """What a saved agent keeps of its metric: ``(meta, arrays)``, the scale in force and what
     ``scale="auto"`` counted of the observations (mean and m2 as rows)."""
     return ({"scale_count": spread.count},
@@ -167,7 +168,7 @@ def scale_state(scale: np.ndarray, spread: "RunningSpread") -> tuple[dict[str, A
 
 
 def load_scale_state(meta: dict[str, Any], arrays: dict[str, np.ndarray], scale: np.ndarray, estimated: np.ndarray,
-                     spread: "RunningSpread") -> None:
+                     spread: RunningSpread) -> None:
     """Restore what :func:`scale_state` saved into ``scale`` and ``spread`` (in place). A file from before
     ``scale="auto"`` keeps the scale of the parameters.
 
@@ -224,6 +225,10 @@ def per_dimension(name: str, value: Any, n: int) -> np.ndarray:
     return s
 
 
+@overload
+def normalize_obs_bounds(obs_bounds: None) -> None: ...
+@overload
+def normalize_obs_bounds(obs_bounds: Sequence[Any]) -> list[list[float] | None]: ...
 def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] | None] | None:
     """``obs_bounds`` as JSON-able lists of floats (so that it survives saving), checked for form.
 

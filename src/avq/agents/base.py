@@ -14,20 +14,22 @@ import inspect
 import math
 import os
 import time
+from abc import abstractmethod
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Iterable, Sequence
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from avq._random import RawStream
+from avq._validate import check_bool, check_int, check_optional
 from avq.agents import save_util
+from avq.agents._history import EpisodeHistory
 from avq.agents.callbacks import NEVER, BaseCallback, CallbackList, as_callback
 from avq.envs import as_env
-from avq.agents._history import EpisodeHistory
-from avq._validate import check_bool, check_int, check_optional
 
 __all__ = ["BaseAgent", "EpisodeRecord", "Callback", "NotFiniteError", "load"]
 
@@ -112,6 +114,12 @@ class BaseAgent:
         return f"{type(self).__name__}({args})"
 
     # -- to implement -----------------------------------------------------------------
+    @property
+    @abstractmethod
+    def n_cells(self) -> int:
+        """The cells the agent has now (the actions, for the agents that quantize actions: :attr:`size_unit`)."""
+        raise NotImplementedError
+
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         raise NotImplementedError
 
@@ -158,7 +166,7 @@ class BaseAgent:
         total_timesteps: int | None = None,
         callback: BaseCallback | Callback | Sequence[BaseCallback | Callback] | None = None,
         progress_bar: bool = False,
-    ) -> "BaseAgent":
+    ) -> BaseAgent:
         """Learn for a number of episodes or of primitive environment steps.
 
         Exactly one budget must be given. ``learn`` continues where the previous call
@@ -210,7 +218,7 @@ class BaseAgent:
         return self._in_episode
 
     def _learn_fused_chunk(self, fused: Callable[[int, int, int], tuple[int, np.ndarray, bool]],
-                           call: "_LearnCall") -> bool:
+                           call: _LearnCall) -> bool:
         """Many steps and episodes in one compiled call (see AVQSarsa's fused loops); True: a callback stops.
 
         The chunk ends at the budget and where a callback must see an episode.
@@ -230,7 +238,7 @@ class BaseAgent:
         self._wall_s += elapsed
         return self._episodes_finished(call, len(rows), (self.history_[k] for k in range(first, len(self.history_))))
 
-    def _learn_python_step(self, call: "_LearnCall") -> bool:
+    def _learn_python_step(self, call: _LearnCall) -> bool:
         """Step the environment from Python up to the end of the episode or of the step budget
         (resetting it first between episodes); True: a callback stops."""
         if not self._in_episode:
@@ -252,7 +260,7 @@ class BaseAgent:
         self.history_.append(record)
         return self._episodes_finished(call, 1, (record,))
 
-    def _episodes_finished(self, call: "_LearnCall", n: int, records: Iterable[EpisodeRecord]) -> bool:
+    def _episodes_finished(self, call: _LearnCall, n: int, records: Iterable[EpisodeRecord]) -> bool:
         """After ``n`` episodes were added to ``history_`` (``records``, which may be none): count them
         against the budget and hand each to the callbacks until one returns ``False``. True: stop."""
         if call.episodes_left is not None:
@@ -372,7 +380,7 @@ class BaseAgent:
         return save_util.save(self, path)
 
     @classmethod
-    def load(cls, path: str | os.PathLike, env: gym.Env | str | None = None) -> "BaseAgent":
+    def load(cls, path: str | os.PathLike, env: gym.Env | str | None = None) -> BaseAgent:
         """Load an agent saved by :meth:`save`: one of this class or of its subclasses
         (``avq.load``, which is ``BaseAgent.load``, loads any agent)."""
         return save_util.load(path, env=env, classes=_subclasses(cls))

@@ -18,8 +18,9 @@ callback says how many episodes may pass before it must see one
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 from avq._io import ProgressLog
 from avq._validate import check_int

@@ -54,7 +54,7 @@ class _Agent(NamedTuple):
 
 
 def _read(name: str) -> dict[str, Any]:
-    text = resources.files("avq.agents").joinpath("defaults", f"{name}.yaml").read_text(encoding="utf-8")
+    text = resources.files("avq.agents").joinpath("defaults").joinpath(f"{name}.yaml").read_text(encoding="utf-8")
     data = yaml.safe_load(text)
     if not isinstance(data, dict) or not {"class", "summary", "entries"} <= set(data):
         raise ValueError(f"avq/agents/defaults/{name}.yaml: needs 'class', 'summary' and 'entries'")

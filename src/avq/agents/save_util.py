@@ -144,7 +144,8 @@ def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
         "state": state,
     }
     buf = io.BytesIO()
-    np.savez(buf, **arrays)
+    # (mypy takes **arrays as possibly filling savez's allow_pickle: bool; the names are the saved arrays')
+    np.savez(buf, **arrays)  # type: ignore[arg-type]
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("meta.json", json.dumps(meta, indent=1))

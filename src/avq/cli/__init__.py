@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 import sys
-from typing import Sequence
+from collections.abc import Sequence
 
 from avq.cli.commands import UsageError, key_values
 from avq.cli.parser import build_parser

@@ -9,6 +9,7 @@ which :func:`avq.cli.main` reports in one line with exit code 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shlex
 import sys
@@ -224,10 +225,8 @@ def _how_to_continue(run_dir: str) -> str:
     checkpoint = os.path.join(run_dir, "checkpoint.zip")
     where = "before its first checkpoint"
     if os.path.exists(checkpoint):
-        try:
+        with contextlib.suppress(ValueError, OSError):
             where = f"at its checkpoint after episode {load(checkpoint).num_episodes}"
-        except (ValueError, OSError):
-            pass
     return f"the run stopped {where}. Continue it with: avq train --resume {run_dir}"
 
 

@@ -8,6 +8,7 @@ mistake as a :class:`~avq.cli.commands.UsageError` (one line, no usage dump).
 from __future__ import annotations
 
 import argparse
+from typing import Any, NoReturn
 
 from avq.cli.commands import UsageError, cmd_evaluate, cmd_reproduce, cmd_sweep, cmd_train
 
@@ -18,7 +19,7 @@ class _Parser(argparse.ArgumentParser):
     #: The subcommands: name -> (its parser, its one-line help), in order (filled by :func:`build_parser`).
     commands: dict[str, tuple[argparse.ArgumentParser, str]]
 
-    def error(self, message: str) -> None:  # one line, no usage dump
+    def error(self, message: str) -> NoReturn:  # one line, no usage dump
         raise UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
 
 
@@ -58,7 +59,7 @@ def build_parser() -> _Parser:
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     parser.commands = {}
 
-    def command(name: str, **kwargs: str) -> argparse.ArgumentParser:
+    def command(name: str, **kwargs: Any) -> argparse.ArgumentParser:
         parser.commands[name] = (sub.add_parser(name, **kwargs), kwargs.get("help", ""))
         return parser.commands[name][0]
 

@@ -74,7 +74,8 @@ class CompiledMaze:
         else:
             self.maze.place(int(x), int(y))
         for time_limit in self._time_limits:
-            time_limit._elapsed_steps = int(elapsed)
+            # (Gymnasium sets ``_elapsed_steps = None`` in TimeLimit.__init__, so its type is inferred as None)
+            time_limit._elapsed_steps = int(elapsed)  # type: ignore[assignment]
         if self._order is not None:
             self._order._has_reset = True  # the loop's episode was started by a reset of its own
 
@@ -94,7 +95,7 @@ def compiled_maze(env: gym.Env) -> CompiledMaze | None:
         elif not isinstance(e, PassiveEnvChecker):
             return None
         e = e.env
-    if type(e) not in (GridMaze, RobotMaze):
+    if type(e) is not GridMaze and type(e) is not RobotMaze:
         return None
     limit = min([t._max_episode_steps for t in time_limits], default=NO_LIMIT)
     if isinstance(e, RobotMaze):

@@ -165,10 +165,13 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         self._dist = self.layout.distances.tolist()
         self._gx, self._gy = self.layout.goal
         self._x, self._y = 0, 0
+        fixed_start = None
+        if start == "fixed" and self.layout.start is not None:  # (check_start: "fixed" needs a start)
+            fixed_start = (int(self.layout.start[0]), int(self.layout.start[1]))
         self.dynamics = GridDynamics(
             walls=read_only(self.layout.walls), goal=(int(self._gx), int(self._gy)),
             starts=read_only(self._starts.astype(np.int64)),
-            fixed_start=tuple(int(v) for v in self.layout.start) if start == "fixed" else None,
+            fixed_start=fixed_start,
             slip=float(slip),
         )
         """The maze's dynamics as frozen data (a ``GridDynamics``, src/avq/envs/grid_maze.py), for compiled loops."""

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import os
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence, Union
+from typing import TypeAlias
 
 import numpy as np
 
@@ -57,7 +58,7 @@ MAPS: dict[str, list[str]] = {
     ],
 }
 
-LayoutSpec = Union[str, os.PathLike, Sequence[str]]
+LayoutSpec: TypeAlias = str | os.PathLike | Sequence[str]
 
 _ALLOWED = set("#.SG")
 

@@ -169,9 +169,12 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         self._sonar = np.zeros(N_SONARS, dtype=np.float64)
         # shortest_steps: lattice origin (rounded) -> (x0, y0, distances).
         self._lattices: dict[tuple[float, float], tuple[float, float, np.ndarray]] = {}
+        fixed_start = None
+        if start == "fixed" and self.layout.start is not None:  # (check_start: "fixed" needs a start)
+            fixed_start = (float(self.layout.start[0]), float(self.layout.start[1]))
         self.dynamics = RobotDynamics(
             grid=read_only(self._grid), goal=(self._gx, self._gy), starts=read_only(self._starts.astype(np.int64)),
-            fixed_start=tuple(float(v) for v in self.layout.start) if start == "fixed" else None,
+            fixed_start=fixed_start,
             move=move, radius=radius, sonar_directions=read_only(self._dirs),
             sonar_range=sonar_range, sonar_noise=sonar_noise, observe_sonar=observe_sonar,
             max_steps=int(max_steps),

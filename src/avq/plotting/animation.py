@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -32,7 +32,7 @@ def _colour_ids(views: Sequence[PartitionView]) -> list[np.ndarray]:
             continue
         vec = view.vectors
         new = np.full(len(vec), -1)
-        if prev_vectors is not None and len(prev_vectors) and len(vec):
+        if prev_vectors is not None and prev_ids is not None and len(prev_vectors) and len(vec):
             d = ((vec[:, None, :] - prev_vectors[None, :, :]) ** 2).sum(axis=2)
             nearest_old, nearest_new = d.argmin(axis=1), d.argmin(axis=0)
             mutual = nearest_new[nearest_old] == np.arange(len(vec))
@@ -112,7 +112,8 @@ def animate_partition(
     text = ax.set_title(heading(views[0]), fontsize=11, y=1.0)
     # Room for a two-line title; no layout engine, which would lay the figure out again for every frame.
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=1 - 0.55 / fig.get_figheight())
-    size = tuple(int(v * dpi) for v in fig.get_size_inches())
+    width, height = fig.get_size_inches()
+    size = (int(width * dpi), int(height * dpi))
     frames = []
     arrows = None
     for view, colour_ids in zip(views, ids):
@@ -127,7 +128,8 @@ def animate_partition(
         text.set_text(heading(view))
         buf = io.BytesIO()
         fig.savefig(buf, format="rgba", dpi=dpi)
-        frame = Image.frombuffer("RGBA", size, buf.getbuffer(), "raw", "RGBA", 0, 1).convert("RGB")
+        # (Pillow's annotation leaves out memoryview, which frombuffer reads without a copy)
+        frame = Image.frombuffer("RGBA", size, buf.getbuffer(), "raw", "RGBA", 0, 1).convert("RGB")  # type: ignore[arg-type]
         frames.append(_palette_image(frame))
     plt.close(fig)
     gif = io.BytesIO()

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -87,7 +87,7 @@ def learning_curves_figure(
     ax.set_title(f"{title or 'learning curves'}\n({spread}{smoothing})", fontsize=10)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    if two:
+    if cells:  # (two)
         ax2 = axes[0, 1]
         for name, runs in cells.items():
             n = min(len(r) for r in runs)

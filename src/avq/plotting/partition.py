@@ -4,8 +4,8 @@ walks from chosen starts; and the drawing helpers that the animation shares."""
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -103,7 +103,7 @@ def _walk_label(walk: GreedyWalk) -> str:
         return f"{where}: reaches the goal in {walk.steps} steps"
     if walk.outcome == "bump":
         return f"{where}: runs into a wall at step {walk.steps}, and again for ever (x)"
-    if walk.outcome == "loop":
+    if walk.outcome == "loop" and walk.loop_from is not None:  # (greedy_walk gives a loop's start)
         return f"{where}: goes round a loop of {len(walk.positions) - 1 - walk.loop_from} squares for ever (dashed)"
     return f"{where}: not at the goal after {walk.steps} steps"
 
@@ -154,7 +154,7 @@ def plot_partitions(
         maze_axes(ax, layout, cell_image(layout, view, colours), cell_borders(layout, view), fontsize=8)
         placed, anchors, directions = cell_arrows(view)
         numbered = view.vectors is not None
-        if numbered:
+        if view.vectors is not None:
             ax.plot(view.vectors[:, 0], view.vectors[:, 1], "o", color="k", ms=3, ls="none", zorder=4,
                     label="codebook vector")
             for c, (ax_x, ax_y) in zip(placed, anchors):  # the number in the square's upper left corner

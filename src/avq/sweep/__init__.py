@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from avq._io import atomic_write_bytes, hold_directory, make_dirs
-from avq.sweep.backends import BACKENDS, _RUNNERS, _check_backend
+from avq.sweep.backends import _RUNNERS, BACKENDS, _check_backend
 from avq.sweep.config import METRICS, SweepConfig, _is_int, read_sweep_config
 from avq.sweep.results import _plot_curves, _rows, _write_results, report
 from avq.sweep.trial import Trial, _trial_kwargs, plan_trials, run_trial  # noqa: F401  (Trial: importable here, as before)

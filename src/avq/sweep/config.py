@@ -48,7 +48,7 @@ class SweepConfig:
 
 
 def _is_int(value: Any, low: int) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= low
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and bool(value >= low)
 
 
 def read_sweep_config(source: str | os.PathLike | dict[str, Any]) -> SweepConfig:

@@ -122,10 +122,10 @@ def report(out: str | os.PathLike, metric: str | None = None) -> str:
     head = f"{'rank':>4}  {'configuration':<{width}}  {metric + ' mean':>16}  {'± 95%':>9}  {'min':>9}  {'max':>9}  {'ok':>3}  {'failed':>6}"
     lines = [f"{out}: {len(rows)} trials, ranked by {metric} ({'higher' if higher else 'lower'} is better)", head,
              "-" * len(head)]
-    for k, (label, mean, half, vals, g) in enumerate(ranked, 1):
+    for k, (label, mean_k, half_k, vals, g) in enumerate(ranked, 1):
         lo = f"{vals.min():.4g}" if len(vals) else "-"
         hi = f"{vals.max():.4g}" if len(vals) else "-"
-        spread = f"{half:.3g}" if len(vals) >= 2 else "-"
-        lines.append(f"{k:>4}  {label:<{width}}  {mean:>16.4g}  {spread:>9}  {lo:>9}  {hi:>9}  "
+        spread = f"{half_k:.3g}" if len(vals) >= 2 else "-"
+        lines.append(f"{k:>4}  {label:<{width}}  {mean_k:>16.4g}  {spread:>9}  {lo:>9}  {hi:>9}  "
                      f"{len(vals):>3}  {g['failed']:>6}")
     return "\n".join(lines)

@@ -40,7 +40,7 @@ class Trial:
 
 def plan_trials(config: SweepConfig) -> list[Trial]:
     """Every trial of the sweep, numbered configuration by configuration, seed by seed."""
-    out = []
+    out: list[Trial] = []
     for cid, (agent, point) in enumerate(_configurations(config)):
         for s, seed in enumerate(config.seeds):
             name = f"c{cid:03d}-{_slug(agent)}-s{s:02d}"

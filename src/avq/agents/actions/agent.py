@@ -23,7 +23,7 @@ dimension scaled to [0, 1]), so ``d_min`` is a fraction of the range.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -39,8 +39,8 @@ from avq._validate import (
 )
 from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.actions.codebook import merged_vector, plan_growth, plan_merges, uniform_actions
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.baselines.tiles import advance_tile_sarsa
 from avq.tilecoding import TileCoder
 
@@ -99,6 +99,14 @@ class ActionCodebookSarsa(PerStepAgent):
 
     size_unit = "actions"
 
+    # The Sarsa(λ) parameters, which check_sarsa_params stores.
+    alpha: float
+    lam: float
+    gamma: float
+    epsilon: float
+    q_init: float
+    traces: str
+
     def __init__(
         self,
         env: gym.Env | str,
@@ -139,10 +147,10 @@ class ActionCodebookSarsa(PerStepAgent):
         check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
         if self.iht_size < self.n_tilings:
             raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
-        box = self.env.action_space
-        self._act_shape = tuple(box.shape)  # type: ignore[attr-defined]
-        self._act_low = np.asarray(box.low, dtype=np.float64).ravel()  # type: ignore[attr-defined]
-        self._act_high = np.asarray(box.high, dtype=np.float64).ravel()  # type: ignore[attr-defined]
+        box = cast(spaces.Box, self.env.action_space)  # (a bounded Box: _check_spaces, in super().__init__)
+        self._act_shape = tuple(box.shape)
+        self._act_low = np.asarray(box.low, dtype=np.float64).ravel()
+        self._act_high = np.asarray(box.high, dtype=np.float64).ravel()
         self._grid = uniform_actions(self.init_actions, self._act_low.shape[0])
         if not self.fixed and len(self._grid) > self.max_actions:
             raise ValueError(f"max_actions must be at least the initial grid's {len(self._grid)} actions "
@@ -257,7 +265,9 @@ class ActionCodebookSarsa(PerStepAgent):
         self._ep_action = self._decide(self._values(self._ep_active))
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        return advance_tile_sarsa(self, max_steps, self._env_actions)
+        # advance_tile_sarsa's annotation (agents/baselines/tiles.py) says an array; a list of arrays, one per
+        # action, does as well. To go when that annotation says so (warn_unused_ignores will tell).
+        return advance_tile_sarsa(self, max_steps, self._env_actions)  # type: ignore[arg-type]
 
     def _end_episode(self) -> EpisodeRecord:
         grown = merges = refused = 0
