@@ -285,10 +285,10 @@ def test_epsilon_schedule_decays_per_episode_to_its_floor_and_survives_loading(t
 
     agent = make_agent("avq-maze", maze(), seed=0, epsilon=0.4, epsilon_decay=0.5, epsilon_min=0.06)
     seen = []
-    agent.learn(total_episodes=4, callback=lambda a, r: seen.append(float(a._P[core.EPS])))
+    agent.learn(total_episodes=4, callback=lambda a, r: seen.append(float(a._P[core.FloatParam.EPSILON_NOW])))
     assert seen == pytest.approx([0.2, 0.1, 0.06, 0.06], rel=1e-12)  # 0.4 * 0.5**k, floored at 0.06
     loaded = avq.load(agent.save(tmp_path / "m.zip"))
-    assert loaded._P[core.EPS] == agent._P[core.EPS]
+    assert loaded._P[core.FloatParam.EPSILON_NOW] == agent._P[core.FloatParam.EPSILON_NOW]
     fused = make_agent("avq-maze", maze(), seed=3, epsilon_decay=0.98).learn(total_episodes=60)
     generic = make_agent("avq-maze", maze(), seed=3, epsilon_decay=0.98, fused=False).learn(total_episodes=60)
     assert np.array_equal(fused.q_, generic.q_) and np.array_equal(fused.codebook_, generic.codebook_)
@@ -302,11 +302,11 @@ def test_alpha_schedule_decays_per_episode_and_is_the_step_of_the_updates(tmp_pa
 
     agent = make_agent("avq-maze", maze(), seed=0, alpha=0.8, alpha_decay=0.5, alpha_min=0.15)
     seen = []
-    agent.learn(total_episodes=4, callback=lambda a, r: seen.append(float(a._P[core.ALPHA])))
+    agent.learn(total_episodes=4, callback=lambda a, r: seen.append(float(a._P[core.FloatParam.ALPHA_NOW])))
     assert seen == pytest.approx([0.4, 0.2, 0.15, 0.15], rel=1e-12)  # 0.8 * 0.5**k, floored at 0.15
     assert agent.alpha == 0.8  # the parameter itself is untouched
     loaded = avq.load(agent.save(tmp_path / "m.zip"))
-    assert loaded._P[core.ALPHA] == agent._P[core.ALPHA]
+    assert loaded._P[core.FloatParam.ALPHA_NOW] == agent._P[core.FloatParam.ALPHA_NOW]
     # The scheduled step is the one used: a constant alpha of 0.4 for episode 2 gives the same values as
     # a schedule that is at 0.4 then (0.8 after one episode of alpha 0.8 ... compared on whole runs).
     fused = make_agent("avq-maze", maze(), seed=3, alpha_decay=0.98).learn(total_episodes=60)

@@ -8,6 +8,7 @@ import pytest
 
 import avq
 from avq import AVQSarsa, make_agent
+from avq.agents.avq_sarsa import episode_end
 from avq.agents.avq_sarsa import kernels as core
 
 INF = np.inf
@@ -87,7 +88,7 @@ def test_a_new_scale_makes_the_merge_pass_find_its_pairs_again(scripted):
     agent._born[:3] = 0
     agent._S[core.SIZE] = 3
     agent._S[core.GEOM] += 1
-    assert core.merge_pass(*agent._state()[:10]) == 0  # pairs: A-B only
+    assert episode_end.merge_pass(*agent._state()[:10]) == 0  # pairs: A-B only
     agent.learn(total_episodes=1)
     assert agent.scale_[1] == pytest.approx(4 * np.std([0.0, 0.0, -10.0, 10.0]), rel=1e-12)
     assert agent.history_[-1]["merges"] == 1

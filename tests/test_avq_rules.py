@@ -10,6 +10,7 @@ import pytest
 from avq import AVQSarsa
 from avq._random import RawStream
 from avq.agents._td import decide, sarsa_lambda, sarsa_td_error, trace_update
+from avq.agents.avq_sarsa import episode_end
 from avq.agents.avq_sarsa import kernels as core
 from avq.rules import APPEND, CHI, KEEP, collision_rule, merge_profiles, similar_profiles
 
@@ -174,10 +175,10 @@ def merge_pass_on(vectors, q, rho, pairs="mutual"):
     act, pc = np.zeros(cap + 1, dtype=np.int64), np.zeros((cap + 1, 2), dtype=np.int64)
     pc[0, 0] = -1
     P, IP, S = np.zeros(core.N_P), np.zeros(core.N_IP, dtype=np.int64), np.zeros(core.N_S, dtype=np.int64)
-    P[core.RHO] = rho
-    IP[core.MERGE_PAIRS] = ("mutual", "mutual_ties", "nearest").index(pairs)
+    P[core.FloatParam.RHO] = rho
+    IP[core.IntParam.MERGE_PAIRS] = ("mutual", "mutual_ties", "nearest").index(pairs)
     S[core.SIZE], S[core.EPISODES] = p, 5
-    n = core.merge_pass(V, Q, E, born, act, pc, np.ones(2), P, IP, S)
+    n = episode_end.merge_pass(V, Q, E, born, act, pc, np.ones(2), P, IP, S)
     return V[: p - n], Q[: p - n], n
 
 
@@ -380,7 +381,7 @@ def test_merge_age_keeps_young_cells_apart():
     ([-1.2, -1.0], False, True),   # the paper merges on the profile difference alone
 ])
 def test_merge_same_action_guard(q1, same_action_guard, merged):
-    from avq.agents.avq_sarsa import kernels as core
+    from avq.agents.avq_sarsa import episode_end
 
     ep = ((0, 0), [((3, 0), -10, NO, True, True)])
     agent, _ = agent_for([ep], rho=100.0, merge_every=0, merge_same_action=same_action_guard)
@@ -388,7 +389,7 @@ def test_merge_same_action_guard(q1, same_action_guard, merged):
     assert agent.n_cells == 2
     agent._Q[0, :2] = [-1.0, -1.1]          # greedy action 0
     agent._Q[1, :2] = q1                     # msd with row 0 is at most 0.02 < rho
-    n = core.merge_pass(*agent._state()[:10])
+    n = episode_end.merge_pass(*agent._state()[:10])
     assert (n == 1) == merged and agent.n_cells == (1 if merged else 2)
     if merged:
         assert np.allclose(agent.q_[0], (np.array([-1.0, -1.1]) + np.array(q1)) / 2)
@@ -428,6 +429,7 @@ def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
 
 
 def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
+    from avq.agents.avq_sarsa import episode_end
     from avq.agents.avq_sarsa import kernels as core
     from avq.quantizer import mutual_nearest_pairs_kernel
 
@@ -443,7 +445,7 @@ def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
         agent._V[:3], agent._Q[:3] = line, 0.0
         agent._S[core.SIZE] = 3
         agent._S[core.GEOM] += 1
-        assert core.merge_pass(*agent._state()[:10]) == merged
+        assert episode_end.merge_pass(*agent._state()[:10]) == merged
         if merged:
             assert agent.codebook_.tolist() == [[0.5, 0.0], [2.0, 0.0]]
 
@@ -572,7 +574,7 @@ def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
     Q = np.array([[1.0, 0.5]])
     born = np.array([[0, 0, 1, 0]])
     P = np.zeros(core.N_P)
-    P[core.BONUS] = 2.0
+    P[core.FloatParam.EXPLORE_BONUS] = 2.0
     out = np.empty((1, 2))
     core.bonus_values(Q, born, P, 0, out)
     assert np.allclose(out, [[1 + 2 / np.sqrt(2), 2.5]])
@@ -595,6 +597,7 @@ def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
 
 @pytest.mark.parametrize("make_room, refused", [(False, 2), (True, 0), (True, 1), (True, 2)])
 def test_make_room_merges_as_many_more_same_action_pairs_as_growth_was_refused(make_room, refused):
+    from avq.agents.avq_sarsa import episode_end
     from avq.agents.avq_sarsa import kernels as core
 
     # Three nearest pairs, far apart: (0, 1), (2, 3), (4, 5), none similar enough for rho = 1.
@@ -608,14 +611,14 @@ def test_make_room_merges_as_many_more_same_action_pairs_as_growth_was_refused(m
     pc = np.zeros((cap + 1, 2), np.int64)
     pc[0, 0] = -1
     P = np.zeros(core.N_P)
-    P[core.RHO] = 1.0
+    P[core.FloatParam.RHO] = 1.0
     IP = np.zeros(core.N_IP, np.int64)
-    IP[core.MERGE_PAIRS] = 2  # "nearest"
-    IP[core.MAKE_ROOM] = make_room
+    IP[core.IntParam.MERGE_PAIRS] = 2  # "nearest"
+    IP[core.IntParam.MAKE_ROOM] = make_room
     S = np.zeros(core.N_S, np.int64)
     S[core.SIZE] = 6
     S[core.REFUSED] = refused
-    n = core.merge_pass(V, Q, E, born, act, pc, np.ones(2), P, IP, S)
+    n = episode_end.merge_pass(V, Q, E, born, act, pc, np.ones(2), P, IP, S)
     expected = {(False, 2): 0, (True, 0): 0, (True, 1): 1, (True, 2): 2}[(make_room, refused)]
     assert n == expected and S[core.SIZE] == 6 - n
     if n == 1:  # the most similar same-action pair, (2, 3), merged into slot 2

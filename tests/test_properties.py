@@ -22,6 +22,7 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from avq import AVQSarsa
+from avq.agents.avq_sarsa import episode_end
 from avq.agents.avq_sarsa import kernels as core
 from avq.quantizer import _TREE_THRESHOLD, Codebook, compact_rows, merge_kernel, mutual_nearest_pairs_kernel
 from avq.rules import mean_square_difference, merge_profiles
@@ -330,9 +331,9 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
     pc[0, 0] = -1  # no cached pairs
     inv = 1.0 / scale
     P = np.zeros(core.N_P)
-    P[core.RHO] = rho
+    P[core.FloatParam.RHO] = rho
     IP = np.zeros(core.N_IP, np.int64)
-    IP[core.MERGE_AGE] = merge_age
+    IP[core.IntParam.MERGE_AGE] = merge_age
     S = np.zeros(core.N_S, np.int64)
     S[core.SIZE] = p
     S[core.EPISODES] = episodes
@@ -340,7 +341,7 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
     pairs = [(i, j) for i, j in brute_mutual_pairs(y, inv)
              if mean_square_difference(q[i], q[j]) < rho
              and (merge_age == 0 or (episodes - born[i] >= merge_age and episodes - born[j] >= merge_age))]
-    n = core.merge_pass(V, Q, E, B, act, pc, inv, P, IP, S)
+    n = episode_end.merge_pass(V, Q, E, B, act, pc, inv, P, IP, S)
     assert n == len(pairs)
     n_new = p - n
     assert S[core.SIZE] == n_new

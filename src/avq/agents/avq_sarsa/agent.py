@@ -7,22 +7,24 @@ from typing import Any, Sequence
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from numba.core.errors import TypingError
 
-from avq._numba import direct_call
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
+from avq.agents._maze_loop import N_R
+from avq.agents._params import pack_params
+from avq.agents.avq_sarsa import episode_end, generic
+from avq.agents.avq_sarsa.generic import GenericPath
 from avq.agents.avq_sarsa import kernels as core
 from avq.agents import _maze_loop
 from avq.agents.avq_sarsa.fused import run_avq_maze
 from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
                                 refresh_scale, scale_setting, scale_state)
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
 __all__ = ["AVQSarsa"]
 
 
-class AVQSarsa(BaseAgent):
+class AVQSarsa(GenericPath):
     """Sarsa(λ) on the Voronoi cells of a growing and merging codebook.
 
     The agent keeps a codebook of vectors in observation space; the cell of an
@@ -197,7 +199,7 @@ class AVQSarsa(BaseAgent):
         self.merge_every = check_int("merge_every", merge_every, 0)
         self.merge_age = check_int("merge_age", merge_age, 0)
         self.merge_same_action = check_bool("merge_same_action", merge_same_action)
-        self.merge_pairs = check_choice("merge_pairs", merge_pairs, _MERGE_PAIRS)
+        self.merge_pairs = check_choice("merge_pairs", merge_pairs, core.MERGE_PAIRS)
         self.epsilon_decay = check_range("epsilon_decay", epsilon_decay, 0.0, 1.0, low_open=True)
         self.epsilon_min = check_range("epsilon_min", epsilon_min, 0.0, 1.0)
         self.alpha_decay = check_range("alpha_decay", alpha_decay, 0.0, 1.0, low_open=True)
@@ -264,161 +266,31 @@ class AVQSarsa(BaseAgent):
         self._allocate(min(self.max_cells, 256) + 4)
         self._pc[0, 0] = -1
         self._inv_scale[:] = 1.0 / self._scale
-        P = self._P
-        P[[core.ALPHA, core.LAM, core.GAMMA, core.DMIN, core.RHO, core.CHI, core.QINIT]] = (
-            self.alpha, self.lam, self.gamma, self.d_min, self.rho, self.chi, self.q_init)
-        P[[core.EPS0, core.EPS_DECAY, core.EPS_MIN]] = self.epsilon, self.epsilon_decay, self.epsilon_min
-        P[core.EPS] = core.epsilon_at(P, self.num_episodes)
-        P[[core.ALPHA0, core.ALPHA_DECAY, core.ALPHA_MIN]] = self.alpha, self.alpha_decay, self.alpha_min
-        P[core.ALPHA] = core.alpha_at(P, self.num_episodes)
-        P[core.BONUS] = self.explore_bonus
-        P[core.ADAPT] = self.adapt_rate
-        P[core.VTRIG] = -1.0 if self.value_trigger is None else self.value_trigger
-        P[core.RTRIG] = -1.0 if self.reward_trigger is None else self.reward_trigger
-        self._IP[[core.REPLACING, core.MERGE_EVERY, core.MERGE_AGE, core.MAX_CELLS, core.MERGE_SAME_ACTION,
-                  core.COLLISION_SPLIT, core.MERGE_PAIRS, core.CYCLE_SPLIT, core.PRUNE_AFTER, core.MAKE_ROOM,
-                  core.MAX_REPEAT]] = (
-            self.traces == "replacing", self.merge_every, self.merge_age, self.max_cells, self.merge_same_action,
-            self.collision_split, _MERGE_PAIRS.index(self.merge_pairs), self.cycle_split, self.prune_after,
-            self.make_room, self.max_repeat or 0)
+        params = self.get_params()
+        pack_params(core.FloatParam, {
+            **params, "alpha_now": 0.0, "epsilon_now": 0.0,
+            "value_trigger": -1.0 if self.value_trigger is None else self.value_trigger,
+            "reward_trigger": -1.0 if self.reward_trigger is None else self.reward_trigger}, out=self._P)
+        self._P[core.FloatParam.EPSILON_NOW] = episode_end.epsilon_at(self._P, self.num_episodes)
+        self._P[core.FloatParam.ALPHA_NOW] = episode_end.alpha_at(self._P, self.num_episodes)
+        pack_params(core.IntParam, {
+            **params, "traces": self.traces == "replacing", "merge_pairs": core.MERGE_PAIRS.index(self.merge_pairs),
+            "max_repeat": self.max_repeat or 0}, out=self._IP)
         self._S[core.EPISODES] = self.num_episodes
-        self._rec = np.zeros(core.N_R)
+        self._rec = np.zeros(N_R)
         #: The observations counted for scale="auto" (none: no dimension is estimated).
         self._spread = RunningSpread(len(self._scale), self.scale_warmup if self._estimated.any() else 0)
         self._direct: tuple = (None, None, None, None)  # see _advance
 
-    def _allocate(self, cap: int) -> None:
-        """(Re)make the agent's arrays for ``cap`` cells, keeping what they hold.
-
-        Every array is a view of two flat buffers (see :func:`avq.agents.avq_sarsa.kernels.unpack`), which the
-        generic path hands to its one compiled call per step.
-        """
-        n, m = self.env.observation_space.shape[0], self.n_actions
-        fb_len, ib_len = core.packed_sizes(cap, n, m)
-        fb, ib = np.zeros(fb_len), np.zeros(ib_len, dtype=np.int64)
-        ib[: core.N_DIMS] = cap, n, m
-        views = core.python_views(fb, ib)
-        if getattr(self, "_fb", None) is not None:
-            for new, old in zip(views, self._views):
-                new[: len(old)] = old
-        self._fb, self._ib, self._views = fb, ib, views
-        for name, view in zip(self._VIEWS, views):
-            setattr(self, name, view)
-
-    def _ensure_capacity(self, extra: int) -> None:
-        """Room for ``extra`` more cells (the kernels append in place and never reallocate): doubling, but
-        never beyond ``max_cells`` and the few rows a step may ask for over it."""
-        cap, size = self._V.shape[0], int(self._S[core.SIZE])
-        if size + extra <= cap:
-            return
-        self._allocate(max(min(2 * cap, self.max_cells + 4), size + extra))
-
-    _VIEWS = ("_V", "_Q", "_E", "_born", "_act", "_pc", "_inv_scale", "_P", "_IP", "_S", "_F")
-
-    def __getstate__(self) -> dict[str, Any]:
-        # The arrays are views of the two buffers: pickle the buffers and make the views again on loading.
-        # The compiled function of the last generic step cannot be pickled; the next step finds it again.
-        state = self.__dict__.copy()
-        for name in self._VIEWS + ("_views",):
-            state.pop(name, None)
-        state["_direct"] = (None, None, None, None)
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        if getattr(self, "_fb", None) is not None:
-            views = core.python_views(self._fb, self._ib)
-            self._views = views
-            for name, view in zip(self._VIEWS, views):
-                setattr(self, name, view)
-
-    def _state(self) -> tuple:
-        return (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
-                self._S, self._F)
-
-    def _as_reward(self, r: Any, step: int) -> float:
-        try:
-            return float(r)
-        except (TypeError, ValueError):
-            raise ValueError(f"reward {r!r} at step {step} of episode {self.num_episodes + 1} is not a number") from None
-
-    def _as_obs(self, obs: Any, step: int) -> np.ndarray:
-        x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self._V.shape[1:]:
-            raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._V.shape[1:]}")
-        return x
-
-    # -- the episode loop (SPEC §2, §5; the rules are in avq.agents.avq_sarsa.kernels) --------------
-    def _compiled(self, kernel, obs: np.ndarray, step: int, r: Any, *args: Any) -> int:
-        """``kernel(buffers, draws, obs, *args)``, growing the arrays or the draws when it asks for them;
-        raises for an observation of the wrong shape, or an observation or reward that is not finite."""
-        while True:
-            draws = self._draws
-            res = kernel(self._fb, self._ib, draws.raw, draws.cursor, obs, *args)
-            if res == core.NEED_ROOM:
-                self._ensure_capacity(3)
-            elif res == core.NEED_DRAWS:
-                draws.reserve()
-            else:
-                break
-        if res == core.BAD_SHAPE:
-            self._as_obs(obs, step)  # raises, naming the step
-        if res == core.NOT_FINITE:
-            self._refuse_non_finite(obs, r, step)
-        return res
-
     def _begin_episode(self, obs: np.ndarray) -> None:
         x = self._as_obs(obs, 0)
-        self._compiled(core.generic_start, x, 0, 0.0)
+        self._compiled(generic.generic_start, x, 0, 0.0)
         self._spread.add(x)
-
-    def _advance(self, max_steps: int) -> tuple[int, bool]:
-        # One compiled call per step (core.generic_step). Once a step has gone through Numba's dispatcher,
-        # later steps with arguments of the same types call the compiled function it chose directly
-        # (avq._numba.direct_call), which halves the cost of a call; what the kernel cannot do at once (more room,
-        # more draws, a bad observation) goes through _compiled, which then hands the step back here.
-        step, kernel, S, draws = self.env.step, core.generic_step, self._S, self._draws
-        fb, ib, raw, cursor = self._fb, self._ib, draws.raw, draws.cursor
-        ended, ndarray = core.ENDED, np.ndarray
-        # (the compiled function for the types of the last step that went through the dispatcher)
-        direct, obs_dtype, obs_shape, r_type = self._direct
-        count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
-        a = int(S[core.ACTION])
-        n = 0
-        while n < max_steps:
-            obs, r, terminated, truncated, info = step(a)
-            n += 1
-            collision = bool(info.get("collision", False))
-            if (direct is not None and type(obs) is ndarray and obs.dtype is obs_dtype and obs.shape == obs_shape
-                    and obs.flags.c_contiguous and type(r) is r_type):
-                a = direct(fb, ib, raw, cursor, obs, r, collision, terminated, truncated)
-            else:
-                terminated, truncated = bool(terminated), bool(truncated)
-                if type(obs) is not ndarray or obs.ndim != 1:
-                    obs = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
-                try:
-                    a = kernel(fb, ib, raw, cursor, obs, r, collision, terminated, truncated)
-                except TypingError:  # an observation or a reward of a type the kernel cannot read
-                    obs = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
-                    r = self._as_reward(r, int(S[core.EP_STEPS]) + 1)
-                    a = core.NEED_DRAWS
-                else:
-                    direct = direct_call(kernel, (fb, ib, raw, cursor, obs, r, collision, terminated, truncated))
-                    obs_dtype, obs_shape, r_type = obs.dtype, obs.shape, type(r)
-                    self._direct = (direct, obs_dtype, obs_shape, r_type)
-            if a < ended:
-                a = self._compiled(kernel, obs, int(S[core.EP_STEPS]) + 1, r, r, collision, terminated, truncated)
-                fb, ib, raw, S = self._fb, self._ib, draws.raw, self._S
-            if count is not None and not count(obs):  # (an observation the kernel took: finite)
-                count = None
-            if a == ended:
-                return n, True
-        return n, False
 
     def _end_episode(self) -> EpisodeRecord:
         if self._estimated.any():
             self._update_scale()  # (before the merge pass, which then sees the new metric)
-        core.end_episode(*self._state(), self._rec)
+        episode_end.end_episode(*self._state(), self._rec)
         return episode_record(*self._rec)
 
     # -- the fused loop (avq.agents.avq_sarsa.fused) ------------------------------------------------
@@ -489,9 +361,5 @@ class AVQSarsa(BaseAgent):
         self._S[core.SIZE] = p
         self._S[core.EPISODES] = self.num_episodes
         self._S[core.GEOM] += 1
-        self._P[core.EPS] = core.epsilon_at(self._P, self.num_episodes)
-        self._P[core.ALPHA] = core.alpha_at(self._P, self.num_episodes)
-
-
-#: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.
-_MERGE_PAIRS = ("mutual", "mutual_ties", "nearest")
+        self._P[core.FloatParam.EPSILON_NOW] = episode_end.epsilon_at(self._P, self.num_episodes)
+        self._P[core.FloatParam.ALPHA_NOW] = episode_end.alpha_at(self._P, self.num_episodes)

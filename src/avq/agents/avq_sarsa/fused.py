@@ -10,8 +10,9 @@ from avq._numba import borrowed
 from avq.quantizer import nearest_index
 from avq.agents._maze_loop import (DONE, NEED_CAPACITY, RECORDS_FULL, borrowed_maze, maze_move, maze_observation,
                                    maze_start)
-from avq.agents.avq_sarsa.kernels import (ACTION, GEOM, IN_EPISODE, SIZE, begin_episode, decide, end_episode, learn,
-                                          observe, observe_at)
+from avq.agents.avq_sarsa.episode_end import end_episode
+from avq.agents.avq_sarsa.kernels import (ACTION, GEOM, IN_EPISODE, SIZE, begin_episode, decide, learn, observe,
+                                          observe_at)
 
 __all__ = ["run_avq_maze"]
 
