@@ -14,13 +14,15 @@ others would change by ``0 * step``.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from avq._random import below, uniform
 
 __all__ = ["greedy_ties", "nth_tie", "epsilon_greedy", "decide", "sarsa_td_error", "mark_active", "clear_traces",
-           "trace_update", "sarsa_lambda", "table_step", "tile_step"]
+           "trace_update", "sarsa_lambda", "table_step", "tile_step", "SarsaParams"]
 
 
 @njit(cache=True, inline="always")
@@ -132,11 +134,23 @@ def sarsa_lambda(Q: np.ndarray, E: np.ndarray, act: np.ndarray, s_tm1: int, a_tm
     trace_update(Q, E, act[1:], act[0], s_tm1, a_tm1, delta, alpha, trace_decay, replacing)
 
 
+class SarsaParams(NamedTuple):
+    """The parameters of tabular Sarsa(λ)'s step (:func:`table_step`)."""
+
+    epsilon: float
+    alpha: float
+    gamma: float
+    lam: float
+    replacing: bool
+
+
 @njit(cache=True, inline="always")
-def table_step(src, Q, E, act, s, a, r, s2, terminated, epsilon, alpha, gamma, lam, replacing) -> int:
+def table_step(src, Q, E, act, s, a, r, s2, terminated, sp: SarsaParams) -> int:
     """One step of tabular Sarsa(λ) (one decision per step) from row ``s``, action ``a``, to row ``s2``
     with reward ``r``: the next action (``a`` itself on a terminal step, which draws nothing), then
-    the update of ``(s, a)``. The one step of ``tabular`` and ``grid``, on both paths."""
+    the update of ``(s, a)``. The one step of ``tabular`` and ``grid``, on both paths. (From Python, ``sp``
+    may be a plain tuple in the same order: the dispatcher types a tuple faster than a named one.)"""
+    epsilon, alpha, gamma, lam, replacing = sp
     if terminated:
         a2 = a
         delta = sarsa_td_error(Q[s, a], r, gamma, 0.0, True)

@@ -8,16 +8,23 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._numba import direct_call
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
+from avq.agents import _maze_loop
 from avq.agents._maze_loop import N_R
 from avq.agents._params import pack_params
-from avq.agents.avq_sarsa import episode_end, generic
-from avq.agents.avq_sarsa.generic import GenericPath
-from avq.agents.avq_sarsa import kernels as core
-from avq.agents import _maze_loop
+from avq.agents._spaces import (
+    RunningSpread,
+    check_box_discrete,
+    load_scale_state,
+    normalize_obs_bounds,
+    refresh_scale,
+    scale_setting,
+    scale_state,
+)
+from avq.agents.avq_sarsa import episode_end, generic, kernels as core
 from avq.agents.avq_sarsa.fused import run_avq_maze
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
-                                refresh_scale, scale_setting, scale_state)
+from avq.agents.avq_sarsa.generic import GenericPath
 from avq.agents.base import EpisodeRecord, episode_record
 from avq.quantizer import Codebook
 
@@ -301,9 +308,15 @@ class AVQSarsa(GenericPath):
             return None
         mz = _maze_loop.maze_arguments(maze)
 
+        loop = [run_avq_maze]  # (after its first call, the compiled loop itself: typing a record costs µs)
+
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_avq_maze(*self._state(), self._rng, maze.np_random, mz, pos, budget_steps,
-                                       budget_episodes, rec)
+            args = (core.Cells(*self._state()), self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes,
+                    rec)
+            out = loop[0](*args)
+            if loop[0] is run_avq_maze:
+                loop[0] = direct_call(run_avq_maze, args) or run_avq_maze
+            return out
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself

@@ -7,10 +7,28 @@ import numpy as np
 from numba import njit
 
 from avq.agents._maze_loop import R_APPENDS, R_CELLS, R_DECISIONS, R_MERGES, R_REFUSED, R_RETURN, R_STEPS
-from avq.agents.avq_sarsa.kernels import (APPENDS, DECISIONS, EP_RETURN, EP_STEPS, EPISODES, GEOM, IN_EPISODE, REFUSED,
-                                          SIZE, FloatParam, IntParam)
+from avq.agents.avq_sarsa.kernels import (
+    APPENDS,
+    DECISIONS,
+    EP_RETURN,
+    EP_STEPS,
+    EPISODES,
+    GEOM,
+    IN_EPISODE,
+    REFUSED,
+    SIZE,
+    FloatParam,
+    IntParam,
+)
 from avq.quantizer import compact_rows, merge_kernel, mutual_nearest_pairs_kernel, nearest_pairs_kernel
-from avq.rules import mean_square_difference, merge_profiles, old_enough, same_greedy_action, similar_profiles, stale_cell
+from avq.rules import (
+    mean_square_difference,
+    merge_profiles,
+    old_enough,
+    same_greedy_action,
+    similar_profiles,
+    stale_cell,
+)
 
 __all__ = ["merge_pass", "prune_pass", "epsilon_at", "alpha_at", "end_episode"]
 

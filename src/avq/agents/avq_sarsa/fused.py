@@ -7,28 +7,47 @@ import numpy as np
 from numba import njit
 
 from avq._numba import borrowed
-from avq.quantizer import nearest_index
-from avq.agents._maze_loop import (DONE, NEED_CAPACITY, RECORDS_FULL, borrowed_maze, maze_move, maze_observation,
-                                   maze_start)
+from avq.agents._maze_loop import (
+    DONE,
+    NEED_CAPACITY,
+    RECORDS_FULL,
+    borrowed_maze,
+    maze_move,
+    maze_observation,
+    maze_start,
+)
 from avq.agents.avq_sarsa.episode_end import end_episode
-from avq.agents.avq_sarsa.kernels import (ACTION, GEOM, IN_EPISODE, SIZE, begin_episode, decide, learn, observe,
-                                          observe_at)
+from avq.agents.avq_sarsa.kernels import (
+    ACTION,
+    GEOM,
+    IN_EPISODE,
+    SIZE,
+    Cells,
+    begin_episode,
+    decide,
+    learn,
+    observe,
+    observe_at,
+)
+from avq.quantizer import nearest_index
 
 __all__ = ["run_avq_maze"]
 
 
 @njit(cache=True)
-def run_avq_maze(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rng, env_rng, mz, pos, budget_steps, budget_episodes,
-                 rec):
+def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episodes, rec):
     """Train AVQ Sarsa(λ) on a maze for at most ``budget_steps`` steps and ``budget_episodes`` episodes.
 
-    ``mz`` is the maze (:class:`~avq.agents._maze_loop.Maze`); ``pos`` holds the robot's ``x, y`` and
+    ``cells`` holds the agent's arrays, ``mz`` the maze (:class:`~avq.agents._maze_loop.Maze`); ``pos`` holds the robot's ``x, y`` and
     the steps taken in the current episode. On GridMaze, the nearest cell of every square is kept
     while the codebook does not change. Returns ``(steps, episodes, status)``.
     """
+    # (Taken out of the record once: the kernels take the arrays one by one. Under Numba 0.68 an inlined
+    # kernel that writes through a record argument can lose those writes in this loop.)
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
-        borrowed(V), borrowed(Q), borrowed(E), borrowed(born), borrowed(act), borrowed(pc),
-        borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F))
+        borrowed(cells.V), borrowed(cells.Q), borrowed(cells.E), borrowed(cells.born), borrowed(cells.act),
+        borrowed(cells.pc), borrowed(cells.inv_scale), borrowed(cells.P), borrowed(cells.IP), borrowed(cells.S),
+        borrowed(cells.F))
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
     scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)

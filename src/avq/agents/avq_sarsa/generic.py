@@ -21,10 +21,21 @@ from numba.core.errors import TypingError
 
 from avq._numba import borrowed, direct_call
 from avq._random import DRAWS_PER_DECISION
+from avq.agents.avq_sarsa.kernels import (
+    ACTION,
+    EP_STEPS,
+    N_F,
+    N_IP,
+    N_P,
+    N_S,
+    NOT_FINITE,
+    SIZE,
+    begin_episode,
+    decide,
+    learn,
+    observe,
+)
 from avq.agents.base import BaseAgent
-from avq.agents.avq_sarsa.kernels import (ACTION, EP_STEPS, N_F, N_IP, N_P, N_S, NOT_FINITE, SIZE, begin_episode, decide,
-                                          learn,
-                                          observe)
 
 __all__ = ["GenericPath", "generic_start", "generic_step", "packed_sizes", "python_views", "unpack", "N_DIMS", "ENDED",
            "NEED_DRAWS", "BAD_SHAPE", "NEED_ROOM"]

@@ -32,20 +32,27 @@ from __future__ import annotations
 
 import math
 from enum import auto
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from avq.agents._params import ParamIndex
-
-from avq.quantizer import (append_vector, nearest_index,
-                           scaled_distance)
 from avq.agents._td import clear_traces, epsilon_greedy, sarsa_lambda, sarsa_td_error
-from avq.rules import APPEND as APPEND_OUTCOME
-from avq.rules import CHI as CHI_OUTCOME
-from avq.rules import (closes_cycle, collision_rule, collision_split, decision_goes_on, may_append,
-                       repeat_limit_reached, reward_jump,
-                       value_jump)
+from avq.quantizer import append_vector, nearest_index, scaled_distance
+from avq.rules import (
+    APPEND as APPEND_OUTCOME,
+    CHI as CHI_OUTCOME,
+    closes_cycle,
+    collision_rule,
+    collision_split,
+    decision_goes_on,
+    may_append,
+    repeat_limit_reached,
+    reward_jump,
+    value_jump,
+)
+
 
 # The parameters, declared once (avq.agents._params): a member's value is its index in P (floats) or IP
 # (ints), its name in lower case the agent parameter that fills it (pack_params, in AVQSarsa._setup).
@@ -87,6 +94,22 @@ class IntParam(ParamIndex):
     PRUNE_AFTER = auto()
     MAKE_ROOM = auto()
     MAX_REPEAT = auto()  # (None: 0)
+
+
+class Cells(NamedTuple):
+    """The agent's arrays in one record, as the fused loop takes them (the kernels take them one by one)."""
+
+    V: np.ndarray
+    Q: np.ndarray
+    E: np.ndarray
+    born: np.ndarray
+    act: np.ndarray
+    pc: np.ndarray
+    inv_scale: np.ndarray
+    P: np.ndarray
+    IP: np.ndarray
+    S: np.ndarray
+    F: np.ndarray
 
 
 #: The lengths of P and IP.

@@ -3,13 +3,29 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
 from numba import njit
 
 from avq._numba import borrowed
 from avq.agents._maze_loop import DONE, RECORDS_FULL, borrowed_maze, maze_move, maze_start
-from avq.agents._td import clear_traces, epsilon_greedy, table_step
+from avq.agents._td import SarsaParams, clear_traces, epsilon_greedy, table_step
 
-__all__ = ["run_tabular_grid_maze"]
+__all__ = ["Table", "run_tabular_grid_maze"]
+
+
+class Table(NamedTuple):
+    """``tabular``'s table as the loop reads it: values, traces, active list, the row of each square
+    (-1: none yet) and the square of each row, and the loop's integer and float state ``T``, ``TF``."""
+
+    q: np.ndarray
+    e: np.ndarray
+    act: np.ndarray
+    row_of: np.ndarray
+    keys: np.ndarray
+    T: np.ndarray
+    TF: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -27,8 +43,7 @@ def _table_row(row_of, keys, T, x, y):
 
 
 @njit(cache=True)
-def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, epsilon, replacing, rng, env_rng,
-                          mz, pos, budget_steps, budget_episodes, rec):
+def run_tabular_grid_maze(table: Table, sp: SarsaParams, rng, env_rng, mz, pos, budget_steps, budget_episodes, rec):
     """Tabular Sarsa(λ) on a GridMaze: :func:`avq.agents._td.table_step` at every step, as ``TabularSarsa``
     does stepping the environment.
 
@@ -37,8 +52,9 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
     row for every position; ``act`` is the active list of :mod:`avq.agents._td`.
     Returns ``(steps, episodes, status)``. (GridMaze only: ``mz.robot`` must be False.)
     """
-    q, e, act, row_of, keys, T, TF = (borrowed(q), borrowed(e), borrowed(act), borrowed(row_of), borrowed(keys),
-                                      borrowed(T), borrowed(TF))
+    q, e, act, row_of, keys, T, TF = (borrowed(table.q), borrowed(table.e), borrowed(table.act),
+                                      borrowed(table.row_of), borrowed(table.keys), borrowed(table.T),
+                                      borrowed(table.TF))
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
@@ -54,7 +70,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
             T[4] = 0
             TF[0] = 0.0
             T[1] = _table_row(row_of, keys, T, int(pos[0]), int(pos[1]))
-            T[2] = epsilon_greedy(rng, q, T[1], epsilon)
+            T[2] = epsilon_greedy(rng, q, T[1], sp.epsilon)
             T[5] = 1
         if steps >= budget_steps:
             return steps, episodes, DONE
@@ -64,7 +80,7 @@ def run_tabular_grid_maze(q, e, act, row_of, keys, T, TF, alpha, gamma, lam, eps
         T[3] += 1
         TF[0] += r
         s2 = _table_row(row_of, keys, T, int(pos[0]), int(pos[1]))
-        T[2] = table_step(rng, q, e, act, T[1], T[2], r, s2, terminated, epsilon, alpha, gamma, lam, replacing)
+        T[2] = table_step(rng, q, e, act, T[1], T[2], r, s2, terminated, sp)
         T[1] = s2
         if terminated or truncated:
             T[5] = 0

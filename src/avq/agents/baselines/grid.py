@@ -10,8 +10,8 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_int_or_ints, check_per_dimension, check_sarsa_params
-from avq.agents.baselines.table import TableSarsa
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
+from avq.agents.baselines.table import TableSarsa
 
 __all__ = ["GridSarsa"]
 

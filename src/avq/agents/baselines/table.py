@@ -91,13 +91,13 @@ class TableSarsa(PerStepAgent):
         self._ep_action = int(decide(self._draws.src, self._q, self._ep_row, self.epsilon))
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        draws, replacing = self._draws, self.traces == "replacing"
+        draws = self._draws
+        sp = (self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing")  # (SarsaParams' order)
 
         def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:
             s2 = self._row(obs)
             draws.reserve()
-            return s2, int(table_step(draws.src, self._q, self._e, self._act, s, a, r, s2, terminated,
-                                      self.epsilon, self.alpha, self.gamma, self.lam, replacing))
+            return s2, int(table_step(draws.src, self._q, self._e, self._act, s, a, r, s2, terminated, sp))
 
         self._ep_row, self._ep_action, n, ended = self._sarsa_steps(max_steps, self._ep_row, self._ep_action, update)
         return n, ended

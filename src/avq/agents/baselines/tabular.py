@@ -10,7 +10,8 @@ from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_sarsa_params
 from avq.agents import _maze_loop
-from avq.agents.baselines.fused import run_tabular_grid_maze
+from avq.agents._td import SarsaParams
+from avq.agents.baselines.fused import Table, run_tabular_grid_maze
 from avq.agents.baselines.table import TableSarsa, greedy_over_rows, observation_key
 
 __all__ = ["TabularSarsa"]
@@ -125,9 +126,9 @@ class TabularSarsa(TableSarsa):
 
             def kernel(pos, budget_steps, budget_episodes, rec):
                 return run_tabular_grid_maze(
-                    self._q, self._e, self._act, row_of, keys, T, TF, self.alpha, self.gamma, self.lam,
-                    self.epsilon, self.traces == "replacing", self._rng, maze.np_random, mz, pos, budget_steps,
-                    budget_episodes, rec)
+                    Table(self._q, self._e, self._act, row_of, keys, T, TF),
+                    SarsaParams(self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing"),
+                    self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes, rec)
 
             steps, rows = _maze_loop.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)
             for row in range(self._n, int(T[0])):

@@ -10,9 +10,9 @@ from gymnasium import spaces
 
 from avq._validate import check_int, check_int_or_ints, check_per_dimension, check_sarsa_params
 from avq.agents._per_step import PerStepAgent
-from avq.agents._td import decide, sarsa_td_error, tile_step
-from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
+from avq.agents._td import sarsa_td_error, tile_step
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.tilecoding import TileCoder
 
 __all__ = ["TileSarsa", "mark_traces"]
