@@ -13,7 +13,7 @@ from avq._validate import check_bool, check_int, check_optional, check_planning_
 from avq.agents import _maze_loop
 from avq.agents._params import pack_params
 from avq.agents.plan import model as _model
-from avq.agents.plan.fused import run_plan_maze
+from avq.agents.plan.fused import maze_types, run_plan_maze
 from avq.agents.plan import kernels as core
 from avq.agents.plan import memory
 from avq.agents.plan.state import (ACTION, EP_STEPS, GEOM, IN_EPISODE, MEM_N, N_F, N_S, SIZE, PlanArrays,
@@ -209,6 +209,8 @@ class PlanningAVQ(BaseAgent):
         #: The compiled core.step for the argument types of the last step that went through Numba's
         #: dispatcher (see _advance), or None.
         self._direct = None
+        #: The fused loop for each maze's types (see _fused_runner).
+        self._loops: dict[tuple, _model.Compiled] = {}
 
     def _make_room(self) -> None:
         """Room for the cells and edges one step may add (the kernels never reallocate). A reallocated array
@@ -303,10 +305,12 @@ class PlanningAVQ(BaseAgent):
         if maze is None:
             return None
         mz = _maze_loop.maze_arguments(maze)
+        # (called once per learn() or episode: directly after the first call, for this maze's types)
+        loop = self._loops.setdefault(maze_types(mz), _model.Compiled(run_plan_maze))
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_plan_maze(self._ag, self._model.a, self._rng, maze.np_random, mz, pos, budget_steps,
-                                 budget_episodes, rec)
+            return loop(self._ag, self._model.a, self._rng, maze.np_random, mz, pos, int(budget_steps),
+                        int(budget_episodes), rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself

@@ -25,12 +25,19 @@ from avq.agents.plan import model as _model
 from avq.agents.plan.model import ModelArrays, borrowed_model
 from avq.agents.plan.state import ACTION, GEOM, IN_EPISODE, SIZE, PlanArrays, borrowed_plan
 
-__all__ = ["run_plan_maze", "run_ps_grid_maze", "PSTable"]
+__all__ = ["run_plan_maze", "run_ps_grid_maze", "PSTable", "maze_types"]
 
 # T: the episode of tabular-ps's fused loop (int): current row, current action, episode steps, rows added this
 # episode, in-episode flag
 T_ROW, T_ACTION, T_STEPS, T_NEW, T_IN_EPISODE = range(5)
 N_T = 5
+
+
+def maze_types(mz: Maze) -> tuple:
+    """What Numba's type of ``mz`` depends on, cheaply (its fields' Python types, and its arrays' dtypes,
+    dimensions and layout): a key under which an agent keeps the compiled loop it calls directly."""
+    return tuple((type(v), v.dtype, v.ndim, v.flags.c_contiguous) if isinstance(v, np.ndarray) else type(v)
+                 for v in mz)
 
 
 class PSTable(NamedTuple):

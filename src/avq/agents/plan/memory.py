@@ -49,7 +49,7 @@ def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_s
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def record_with_start(m: ModelArrays, e_xs, X, t: int, s: int, a: int, r: float, disc: float, s2: int,
                       sign: int) -> None:
     """:func:`avq.agents.plan.model.record`, and the transition's start ``X[t, :n]`` added to (or removed from)
@@ -87,7 +87,7 @@ def relocate(ag: PlanArrays, m: ModelArrays, u: int, w: int) -> None:
         push(heap, hpos, prio, C, w, FIRST)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float) -> None:
     """Keep the transition ``(i, a) -> j`` from ``ag.xs`` to ``x`` in the memory. When it is full, the oldest
     is overwritten: it stays in the model, in the cells it was in, but no longer follows their changes."""

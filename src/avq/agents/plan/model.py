@@ -44,11 +44,11 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from avq._numba import borrowed
+from avq._numba import borrowed, direct_call
 from avq.agents._params import ParamIndex, pack_params
 from avq.agents._td import epsilon_greedy
 
-__all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model"]
+__all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "Compiled"]
 
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
@@ -72,11 +72,17 @@ FIRST = 1e300
 class ModelArrays(NamedTuple):
     """The model's arrays: the record the compiled functions take (as ``m``), and the order of a model file.
 
-    A function that writes an array of a record takes it into a local name first (``cnt = m.cnt``) and
-    writes through that name, or hands that name on. :func:`record` (and the functions of
-    :mod:`avq.agents.plan.memory` that call it) are not inlined at Numba's IR level (``inline="always"``):
-    inlined, with the record passed on, Numba 0.68 dropped some of its writes (the predecessor lists),
-    silently. LLVM still inlines them where it pays.
+    A function takes the arrays it uses into local names once (``cnt = m.cnt``), not in its loops: each
+    ``m.cnt`` is a new reference to count (or, borrowed, to check).
+
+    Beware: in functions inlined at Numba's IR level (``inline="always"``) with a record argument, Numba 0.68
+    silently dropped some writes to the record's arrays: the predecessor lists of :func:`record` (when
+    written through local names inside the agents' kernels, and when written as ``m.p_sa[k] = ...`` inside a
+    fused loop that builds ``m`` itself), and ``tabular-ps``'s table in its fused loop. Those writes are
+    made in functions that are not inlined and take the arrays themselves (:func:`_add_predecessor`,
+    ``fused._ps_row``'s arrays taken by its caller); the bit-for-bit comparison with the previous release
+    caught it. (Numba's on-disk cache does not notice a change to an inlined function of another module:
+    clear ``__pycache__`` when comparing.)
     """
 
     cnt: np.ndarray
@@ -98,6 +104,24 @@ class ModelArrays(NamedTuple):
     prio: np.ndarray
     C: np.ndarray
     MP: np.ndarray
+
+
+class Compiled:
+    """A compiled function called from Python: through Numba's dispatcher the first time, then directly
+    (:func:`avq._numba.direct_call`). Typing a record of arrays at every call costs the dispatcher several µs,
+    as much as a sweep of a small model. Only for calls whose arguments keep their types: records whose arrays
+    are reallocated with the same dtypes, dimensions and layout (:meth:`Model.reserve`), ints, floats, bools."""
+
+    def __init__(self, dispatcher: Any) -> None:
+        self.dispatcher = dispatcher
+        self.entry: Any = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self.entry is not None:
+            return self.entry(*args)
+        out = self.dispatcher(*args)
+        self.entry = direct_call(self.dispatcher, args)
+        return out
 
 
 @njit(cache=True, inline="always")
@@ -138,6 +162,7 @@ class Model:
         self.a = _empty(states, m, 4 * states, v_opt)
         pack_params(ModelParam, {"v_opt": v_opt, "v_min": v_min, "tol": tol}, out=self.a.MP)
         self.a.C[KNOWN] = known
+        self._add_state, self._sweep = Compiled(add_state), Compiled(sweep)
 
     @property
     def n_states(self) -> int:
@@ -169,7 +194,7 @@ class Model:
     def add_state(self) -> int:
         """A new state, every action unknown (worth ``v_opt``)."""
         self.reserve(states=1)
-        return add_state(self.a)
+        return self._add_state(self.a)
 
     def raise_optimism(self, v_opt: float) -> None:
         """Make untried pairs worth ``v_opt`` from now on (at least what they were worth): every state is
@@ -188,7 +213,7 @@ class Model:
 
     def sweep(self, budget: int) -> int:
         """Back up at most ``budget`` queued states, highest priority first; return how many."""
-        return sweep(self.a, budget)
+        return self._sweep(self.a, int(budget))
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The arrays in use, for a model file."""
@@ -249,20 +274,21 @@ def add_state(m: ModelArrays) -> int:
 @njit(cache=True, inline="always")
 def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
-    cnt, Q, V, C, MP = m.cnt, m.Q, m.V, m.C, m.MP
+    cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (m.cnt, m.rsum, m.head, m.Q, m.V, m.e_to, m.e_next,
+                                                           m.e_disc, m.C, m.MP)  # (taken once: see ModelArrays)
     best = -np.inf
     for a in range(Q.shape[1]):
         n = cnt[s, a]
         if n < C[KNOWN]:
             q = MP[ModelParam.V_OPT]
         else:
-            total = m.rsum[s, a]
-            e = m.head[s, a]
+            total = rsum[s, a]
+            e = head[s, a]
             while e >= 0:
-                t = m.e_to[e]
+                t = e_to[e]
                 if t >= 0:
-                    total += m.e_disc[e] * V[t]
-                e = m.e_next[e]
+                    total += e_disc[e] * V[t]
+                e = e_next[e]
             q = total / n
             if q < MP[ModelParam.V_MIN]:
                 q = MP[ModelParam.V_MIN]
@@ -338,19 +364,20 @@ def pop(heap, hpos, prio, C) -> int:
 @njit(cache=True, inline="always")
 def propagate(m: ModelArrays, s: int, dv: float) -> None:
     """Queue each known predecessor pair's state of ``s`` by how much ``V[s]``'s change ``dv`` moves it."""
-    heap, hpos, prio, C = m.heap, m.hpos, m.prio, m.C  # (written: see the note on ModelArrays)
-    n_actions = m.cnt.shape[1]
-    k = m.p_head[s]
+    cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next = m.cnt, m.e_n, m.e_disc, m.p_head, m.p_sa, m.p_edge, m.p_next
+    heap, hpos, prio, C, tol = m.heap, m.hpos, m.prio, m.C, m.MP[ModelParam.TOL]  # (taken once: see ModelArrays)
+    n_actions = cnt.shape[1]
+    k = p_head[s]
     while k >= 0:
-        q = m.p_sa[k] // n_actions
-        b = m.p_sa[k] - q * n_actions
-        e = m.p_edge[k]
-        n = m.cnt[q, b]
-        if n >= C[KNOWN] and m.e_n[e] > 0:
-            p = dv * m.e_disc[e] / n
-            if p > m.MP[ModelParam.TOL]:
+        q = p_sa[k] // n_actions
+        b = p_sa[k] - q * n_actions
+        e = p_edge[k]
+        n = cnt[q, b]
+        if n >= C[KNOWN] and e_n[e] > 0:
+            p = dv * e_disc[e] / n
+            if p > tol:
                 push(heap, hpos, prio, C, q, p)
-        k = m.p_next[k]
+        k = p_next[k]
 
 
 @njit(cache=True, inline="always")
@@ -368,13 +395,24 @@ def sweep(m: ModelArrays, budget: int) -> int:
 
 
 @njit(cache=True)
+def _add_predecessor(p_head, p_sa, p_edge, p_next, C, sa: int, e: int, s2: int) -> None:
+    """Enter edge ``e`` of pair ``sa`` (``s * m + a``) in the predecessor list of ``s2``. (Not inlined at Numba's
+    IR level: see the note on :class:`ModelArrays`; it runs once per new edge.)"""
+    k = C[N_PREDS]
+    C[N_PREDS] = k + 1
+    p_sa[k] = sa
+    p_edge[k] = e
+    p_next[k] = p_head[s2]
+    p_head[s2] = k
+
+
+@njit(cache=True, inline="always")
 def record(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, sign: int) -> int:
     """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal) of return ``r`` and
     discount ``disc``; return its edge. A successor seen for the first time takes an edge (and a
     predecessor entry): the caller makes room for one."""
     cnt, rsum, head, C = m.cnt, m.rsum, m.head, m.C
     e_to, e_next, e_n, e_disc, e_r = m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r
-    p_head, p_sa, p_edge, p_next = m.p_head, m.p_sa, m.p_edge, m.p_next
     cnt[s, a] += sign
     rsum[s, a] += sign * r
     if cnt[s, a] == 0:
@@ -392,12 +430,7 @@ def record(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, sign:
         e_disc[e] = 0.0
         e_r[e] = 0.0
         if s2 >= 0:
-            k = C[N_PREDS]
-            C[N_PREDS] = k + 1
-            p_sa[k] = s * cnt.shape[1] + a
-            p_edge[k] = e
-            p_next[k] = p_head[s2]
-            p_head[s2] = k
+            _add_predecessor(m.p_head, m.p_sa, m.p_edge, m.p_next, C, s * cnt.shape[1] + a, e, s2)
     e_n[e] += sign
     e_disc[e] += sign * disc
     e_r[e] += sign * r

@@ -15,7 +15,7 @@ from avq._validate import check_bool, check_int, check_int_or_ints, check_planni
 from avq.agents._per_step import PerStepAgent
 from avq.agents import _maze_loop
 from avq.agents.plan import model as _model
-from avq.agents.plan.fused import PSTable, run_ps_grid_maze
+from avq.agents.plan.fused import PSTable, maze_types, run_ps_grid_maze
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds
@@ -144,6 +144,8 @@ class PrioritizedSweeping(PerStepAgent):
         #: The compiled ps_step for the argument types of the last step that went through Numba's dispatcher
         #: (see _advance), or None.
         self._direct = None
+        #: The fused loop for each maze's types (see _fused_runner).
+        self._loops: dict[tuple, _model.Compiled] = {}
 
     def _key(self, obs: Any) -> Any:
         """The state's key: its flat bin index with ``bins``, else the observation's (a Discrete index or a tuple)."""
@@ -211,10 +213,12 @@ class PrioritizedSweeping(PerStepAgent):
         h, w = maze.dynamics.walls.shape
         mz = _maze_loop.maze_arguments(maze)
         model = self._model
+        # (called once per learn() or episode: directly after the first call, for this maze's types)
+        loop = self._loops.setdefault(maze_types(mz), _model.Compiled(run_ps_grid_maze))
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_ps_grid_maze(model.a, table, self.gamma, self.epsilon, self.n_backups, self._rng,
-                                    maze.np_random, mz, pos, budget_steps, budget_episodes, rec)
+            return loop(model.a, table, self.gamma, self.epsilon, self.n_backups, self._rng, maze.np_random, mz,
+                        pos, int(budget_steps), int(budget_episodes), rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             nonlocal table
