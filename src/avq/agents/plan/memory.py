@@ -12,7 +12,8 @@ from __future__ import annotations
 from numba import njit
 
 from avq.quantizer import nearest_index
-from avq.agents.plan.model import FIRST, ModelArrays, push, record
+from avq.agents.plan.model import FIRST, ModelArrays, record
+from avq.agents.plan.queue import push
 from avq.agents.plan.state import MEM_N, MEM_POS, SIZE, PlanArrays, PlanIntParam
 
 __all__ = ["remember", "relocate", "record_with_start"]

@@ -2,10 +2,10 @@
 
 One implementation serves every model-based agent: ``tabular-ps`` (a state is a distinct
 observation, a transition one environment step) and ``avq-plan`` (a state is a cell of the
-codebook, a transition one aggregate transition, ``k`` steps long; docs: explanation/paper.md,
-Acting). The model keeps, for each pair ``(s, a)``, the number of transitions ``n(s, a)``, the sum of their returns, and for
-each successor ``s'`` seen the sum of the discounts ``gamma ** k`` of the transitions that reached
-it (a terminal successor is ``-1``, worth 0). So the model is right for stochastic tasks and for
+codebook, a transition one aggregate transition, ``k`` steps long; docs:
+explanation/paper.md, Acting). The model keeps, for each pair ``(s, a)``, the number of transitions
+``n(s, a)``, the sum of their returns, and for each successor ``s'`` seen the sum of the discounts
+``gamma ** k`` of the transitions that reached it (a terminal successor is ``-1``, worth 0). So the model is right for stochastic tasks and for
 transitions of any duration (an SMDP step):
 
     Q(s, a) = ( sum R + sum_{s'} (sum gamma ** k to s') * V(s') ) / n(s, a)      V(s) = max_a Q(s, a)
@@ -46,6 +46,7 @@ from numba import njit
 
 from avq._numba import borrowed, direct_call
 from avq.agents._params import ParamIndex, pack_params
+from avq.agents.plan.queue import HEAP_N, pop, push
 from avq.agents._td import epsilon_greedy
 
 __all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "Compiled"]
@@ -53,8 +54,9 @@ __all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_mo
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
 
-# C: int counters (and ``known``, the one int parameter, kept with them as saved model files hold it there)
-N_STATES, N_EDGES, N_PREDS, HEAP_N, BACKUPS, KNOWN = range(6)
+# C: int counters (and ``known``, the one int parameter, kept with them as saved model files hold it there);
+# C[HEAP_N] (3) is the queue's length (avq.agents.plan.queue)
+N_STATES, N_EDGES, N_PREDS, _, BACKUPS, KNOWN = range(6)
 N_C = 6
 
 
@@ -299,66 +301,6 @@ def backup(m: ModelArrays, s: int) -> float:
     V[s] = best
     C[BACKUPS] += 1
     return change
-
-
-@njit(cache=True, inline="always")
-def _swap(heap, hpos, i: int, j: int) -> None:
-    si, sj = heap[i], heap[j]
-    heap[i], heap[j] = sj, si
-    hpos[sj], hpos[si] = i, j
-
-
-@njit(cache=True, inline="always")
-def _sift_up(heap, hpos, prio, i: int) -> None:
-    while i > 0:
-        parent = (i - 1) // 2
-        if prio[heap[parent]] >= prio[heap[i]]:
-            return
-        _swap(heap, hpos, i, parent)
-        i = parent
-
-
-@njit(cache=True, inline="always")
-def push(heap, hpos, prio, C, s: int, p: float) -> None:
-    """Queue ``s`` with priority ``p``, or raise its priority to ``p`` (the queue's arrays of the model)."""
-    i = hpos[s]
-    if i < 0:
-        i = C[HEAP_N]
-        heap[i] = s
-        hpos[s] = i
-        prio[s] = p
-        C[HEAP_N] = i + 1
-    elif p > prio[s]:
-        prio[s] = p
-    else:
-        return
-    _sift_up(heap, hpos, prio, i)
-
-
-@njit(cache=True, inline="always")
-def pop(heap, hpos, prio, C) -> int:
-    """The queued state of highest priority, taken off the queue."""
-    top = heap[0]
-    n = C[HEAP_N] - 1
-    C[HEAP_N] = n
-    hpos[top] = -1
-    if n > 0:
-        last = heap[n]
-        heap[0] = last
-        hpos[last] = 0
-        i = 0
-        while True:
-            left = 2 * i + 1
-            if left >= n:
-                break
-            best = left
-            if left + 1 < n and prio[heap[left + 1]] > prio[heap[left]]:
-                best = left + 1
-            if prio[heap[best]] <= prio[heap[i]]:
-                break
-            _swap(heap, hpos, i, best)
-            i = best
-    return top
 
 
 @njit(cache=True, inline="always")
