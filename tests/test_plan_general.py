@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import kernels as core, model as _model
+from avq.agents.plan import model as _model
+from avq.agents.plan.state import MEM_N
 
 from conftest import ScriptedEnv
 
@@ -35,8 +36,8 @@ def test_a_decision_that_stays_split_after_steps_in_its_cell_gives_the_observati
     assert agent.codebook_.ravel().tolist() == [0.0, 1.0, 2.0]
     # The transitions: 0 -> 1 (3 steps), 1 -> 2 (4 steps: x = 1.1-1.3 lie within d_min of 1.0, so the decision
     # went on past split_after), 2 -> the end (1 step).
-    assert agent._mem_i[:3].tolist() == [[0, 0, 1], [0, 1, 2], [0, 2, -1]]
-    assert agent._mem_f[:3, 0].tolist() == [-3.0, -4.0, -1.0]
+    assert agent._ag.mem_i[:3].tolist() == [[0, 0, 1], [0, 1, 2], [0, 2, -1]]
+    assert agent._ag.mem_f[:3, 0].tolist() == [-3.0, -4.0, -1.0]
     h = agent.episode_history()
     assert h["decisions"].tolist() == [3] and h["n_cells"].tolist() == [3] and h["refused"].tolist() == [0]
 
@@ -98,13 +99,13 @@ def test_raising_optimism_reaches_the_predecessors_of_an_untried_state():
     for _ in range(2):
         mdl.add_state()
     mdl.reserve(edges=1)
-    _model.observe(*mdl.a, 0, 0, -1.0, 1.0, 1, 100)
+    _model.observe(mdl.a, 0, 0, -1.0, 1.0, 1, 100)
     assert mdl.a.Q[0, 0] == -1.0
     mdl.raise_optimism(5.0)
     mdl.sweep(100)
     assert mdl.a.Q[0, 0] == 4.0 and mdl.a.Q[0, 1] == 5.0 and mdl.a.V[1] == 5.0
     mdl.raise_optimism(3.0)  # (it only rises)
-    assert mdl.a.MP[_model.V_OPT] == 5.0
+    assert mdl.a.MP[_model.ModelParam.V_OPT] == 5.0
 
 
 def test_bad_v_opt_gets_a_clear_error():
@@ -120,15 +121,15 @@ def test_the_model_follows_its_transitions_into_the_cells_of_the_new_metric():
     agent = avq.make_agent("avq-plan", "CartPole-v1", seed=0, scale_warmup=400).learn(total_episodes=40)
     assert agent.get_params()["obs_bounds"] is None
     n, size = 4, agent.n_cells
-    t = int(agent._S[core.MEM_N])
+    t = int(agent._ag.S[MEM_N])
     assert agent.n_cells > 1 and t > 0
-    starts, ends = agent._mem_x[:t, :n], agent._mem_x[:t, n:]
-    assert np.array_equal(agent._mem_i[:t, 1], agent.cells(starts))
-    live = agent._mem_i[:t, 2] >= 0
-    assert np.array_equal(agent._mem_i[:t, 2][live], agent.cells(ends[live]))
+    starts, ends = agent._ag.mem_x[:t, :n], agent._ag.mem_x[:t, n:]
+    assert np.array_equal(agent._ag.mem_i[:t, 1], agent.cells(starts))
+    live = agent._ag.mem_i[:t, 2] >= 0
+    assert np.array_equal(agent._ag.mem_i[:t, 2][live], agent.cells(ends[live]))
     # The model's counts are those of the remembered transitions in their current cells.
     counts = np.zeros((size, agent.n_actions), dtype=np.int64)
-    np.add.at(counts, (agent._mem_i[:t, 1], agent._mem_i[:t, 0]), 1)
+    np.add.at(counts, (agent._ag.mem_i[:t, 1], agent._ag.mem_i[:t, 0]), 1)
     assert np.array_equal(agent.model_.a.cnt[:size], counts)
 
 

@@ -1,13 +1,15 @@
-"""Planning over a learned model: the model and prioritized sweeping (agents/_model.py), tabular-ps, and
-avq-plan's rules (agents/_plan_core.py), each set up by hand with the numbers written out."""
+"""Planning over a learned model: the model and prioritized sweeping (agents/plan/model.py), tabular-ps, and
+avq-plan's rules (agents/plan/kernels.py, agents/plan/memory.py), each set up by hand with the numbers written
+out."""
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import kernels as core, model as _model
+from avq.agents.plan import kernels as core, memory, model as _model
 from avq.agents.plan.model import BACKUPS, HEAP_N, KNOWN, Model
+from avq.agents.plan.state import MEM_POS, N_F, SIZE, SLOPE_N, SLOPE_SUM, PlanParam
 
 
 def model(m=2, v_opt=10.0, v_min=-100.0, known=1, tol=1e-9, states=3):
@@ -19,7 +21,7 @@ def model(m=2, v_opt=10.0, v_min=-100.0, known=1, tol=1e-9, states=3):
 
 def observe(mdl, s, a, r, disc, s2, budget=1000):
     mdl.reserve(edges=1)
-    return _model.observe(*mdl.a, s, a, r, disc, s2, budget)
+    return _model.observe(mdl.a, s, a, r, disc, s2, budget)
 
 
 # -- the model ----------------------------------------------------------------------------------------
@@ -82,8 +84,8 @@ def test_prioritized_sweeping_carries_a_change_back_along_a_chain_within_the_bud
     observe(mdl, 3, 0, -1.0, 1.0, -1, budget=0)
     assert mdl.a.V[:4].tolist() == [9.0, 9.0, 9.0, -1.0] and mdl.queued == 3
     # Largest change first: state 2 (V = -2), which raises state 1's priority to 12; then 1 and 0.
-    assert _model.sweep(*mdl.a, 1) == 1 and mdl.a.V[:4].tolist() == [9.0, 9.0, -2.0, -1.0] and mdl.queued == 2
-    assert _model.sweep(*mdl.a, 10) == 2 and mdl.a.V[:4].tolist() == [-4.0, -3.0, -2.0, -1.0]
+    assert _model.sweep(mdl.a, 1) == 1 and mdl.a.V[:4].tolist() == [9.0, 9.0, -2.0, -1.0] and mdl.queued == 2
+    assert _model.sweep(mdl.a, 10) == 2 and mdl.a.V[:4].tolist() == [-4.0, -3.0, -2.0, -1.0]
     assert mdl.queued == 0
 
 
@@ -103,8 +105,8 @@ def test_removing_a_transition_undoes_adding_it():
     observe(mdl, 0, 0, -1.0, 1.0, 1)
     before = {k: v.copy() for k, v in mdl.state_dict().items()}
     observe(mdl, 0, 0, -3.0, 0.5, 2)
-    _model.record(*[mdl.a[k] for k in (0, 1, 2, 5, 6, 7, 8, 9, 10, 11, 12, 13)], mdl.a.C, 0, 0, -3.0, 0.5, 2, -1)
-    _model.settle(*mdl.a, 0, 100)
+    _model.record(mdl.a, 0, 0, -3.0, 0.5, 2, -1)
+    _model.settle(mdl.a, 0, 100)
     after = mdl.state_dict()
     for name in ("m_cnt", "m_rsum", "m_Q", "m_V"):
         assert np.array_equal(before[name], after[name]), name
@@ -199,26 +201,21 @@ def plan_agent(**kw):
 
 def remember(agent, xs, a, x, R, disc=1.0):
     """Store a transition from xs to x (cells by the current codebook) in the memory and the model."""
-    V = agent._V
-    size = int(agent._S[core.SIZE])
-
-    def cell(p):
-        return int(np.argmin(((V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
-
+    ag = agent._ag
+    size = int(ag.S[SIZE])
+    cell = lambda p: int(np.argmin(((ag.V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
     i, j = cell(xs), cell(x)
-    t = int(agent._S[core.MEM_POS])
-    core.remember(agent._IP, agent._S, np.asarray(xs, float), np.asarray(x, float), agent._mem_x, agent._mem_i,
-                  agent._mem_f, a, i, j, R, disc)
+    t = int(ag.S[MEM_POS])
+    ag.xs[:] = xs  # (the current transition's start)
+    memory.remember(ag, np.asarray(x, float), a, i, j, R, disc)
     agent._make_room()
-    m = agent._model.a
-    core._record(m.cnt, m.rsum, m.head, m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r, m.p_head, m.p_sa, m.p_edge,
-                 m.p_next, m.C, agent._e_xs, agent._mem_x, t, i, a, R, disc, j, 1)
+    memory.record_with_start(agent._model.a, agent._ag.e_xs, ag.mem_x, t, i, a, R, disc, j, 1)
     return i, j
 
 
 def add_cell(agent, x):
     agent._make_room()
-    return core._new_cell(agent._V, agent._S, *agent._model.a, np.asarray(x, float))
+    return core._new_cell(agent._ag, agent._model.a, np.asarray(x, float))
 
 
 def test_appending_a_cell_moves_the_remembered_transitions_that_now_start_or_end_in_it():
@@ -230,23 +227,22 @@ def test_appending_a_cell_moves_the_remembered_transitions_that_now_start_or_end
     m = agent._model.a
     assert m.cnt[0, 1] == 2 and m.cnt[1, 1] == 0
     agent._make_room()
-    c = core.append_cell(agent._V, agent._inv_scale, agent._S, agent._mem_x, agent._mem_i, agent._mem_f,
-                         agent._e_xs, *agent._model.a, np.array([2.0, 2.0]))
+    c = core.append_cell(agent._ag, agent._model.a, np.array([2.0, 2.0]))
     assert c == 2
     # The second transition's end (2, 2) is the new vector itself: it moves to cell 2. Its start (1, 2) lies at
     # distance 1 from both (1, 1) and (2, 2): a tie stays with the lower index, cell 0. The first is unchanged.
-    assert agent._mem_i[:2].tolist() == [[1, 0, 1], [1, 0, 2]]
+    assert agent._ag.mem_i[:2].tolist() == [[1, 0, 1], [1, 0, 2]]
     assert m.cnt[0, 1] == 2 and m.cnt[2, 1] == 0
-    assert agent._e_xs[:m.C[_model.N_EDGES]].sum(axis=0).tolist() == [2.0, 3.0]  # the starts moved with them
+    assert agent._ag.e_xs[:m.C[_model.N_EDGES]].sum(axis=0).tolist() == [2.0, 3.0]  # the starts moved with them
 
 
 def test_the_value_slope_is_the_return_per_distance_travelled_unless_given():
-    P, F = np.zeros(core.N_P), np.zeros(core.N_F)
-    P[core.SLOPE] = -1.0
+    P, F = np.zeros(len(PlanParam)), np.zeros(N_F)
+    P[PlanParam.VALUE_SLOPE] = -1.0
     assert core.value_slope(P, F) == 0.0
-    F[core.SLOPE_SUM], F[core.SLOPE_N] = 3.0 + 5.0, 2
+    F[SLOPE_SUM], F[SLOPE_N] = 3.0 + 5.0, 2
     assert core.value_slope(P, F) == 4.0
-    P[core.SLOPE] = 1.5
+    P[PlanParam.VALUE_SLOPE] = 1.5
     assert core.value_slope(P, F) == 1.5
 
 
@@ -265,8 +261,8 @@ def test_disagreement_is_the_outcome_gap_beyond_what_distance_explains():
     remember(agent, (1, 1), 1, (5, 5), -2.0)
     out = np.zeros(3)
     # Now from (2, 1) it leads to cell 2: outcome -1 - 20 = -21. Gap 25, distance 1, slope 3: excess 22.
-    excess = core.disagreement(m.cnt, m.head, m.V, m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r, m.C, agent._e_xs,
-                               agent._inv_scale, 0, 1, -21.0, np.array([2.0, 1.0]), 3.0, out)
+    agent._ag.xs[:] = 2.0, 1.0
+    excess = core.disagreement(agent._ag, m, 0, 1, -21.0, 3.0, out)
     assert excess == pytest.approx(22.0) and out.tolist() == [1.0, 1.0, -21.0]
 
 
@@ -278,16 +274,15 @@ def test_split_cell_cuts_the_cell_around_the_two_starts_and_moves_its_transition
     # (1, 3), which ties between (3, 1) and (3, 5) and so is in cell 0, to (3, 4) in cell 1.
     for xs, x in (((1, 1), (3, 1)), ((2, 1), (4, 1)), ((1, 3), (3, 4))):
         remember(agent, xs, 1, x, -1.0)
-    assert agent._mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 0, 1]]
-    c = core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i, agent._mem_f,
-                        agent._e_xs, *agent._model.a, 0, 1, np.array([1.0, 1.0]), np.array([1.0, 3.0]))
+    assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 0, 1]]
+    c = core.split_cell(agent._ag, agent._model.a, 0, 1, np.array([1.0, 1.0]), np.array([1.0, 3.0]))
     assert c == 2
     # Each successor's transitions go with the seed nearer their mean start: cell 0's (mean (1.5, 1)) with
     # (1, 1), cell 1's ((1, 3)) with (1, 3). The cell's vector moves to (1.5, 1); (1, 3) is the new cell.
-    assert agent._V[0].tolist() == [1.5, 1.0] and agent._V[2].tolist() == [1.0, 3.0]
+    assert agent._ag.V[0].tolist() == [1.5, 1.0] and agent._ag.V[2].tolist() == [1.0, 3.0]
     # By the new vectors the third transition starts in cell 2 and still ends in cell 1 ((3, 4): 1 from
     # (3, 5), sqrt(5) from (1, 3)); the others stay in cell 0.
-    assert agent._mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 2, 1]]
+    assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 2, 1]]
     m = agent._model.a
     assert m.cnt[2, 1] == 1 and m.cnt[0, 1] == 2
     assert int(m.C[BACKUPS]) == 0 and m.hpos[0] >= 0 and m.hpos[2] >= 0  # both queued for a backup
@@ -301,16 +296,13 @@ def test_split_cell_refuses_mean_starts_within_d_min_of_each_other():
     add_cell(agent, (20.0, 20.0))
     remember(agent, (1, 1), 0, (20, 20), -10.0)
     remember(agent, (2, 2), 0, (2, 1), -1.0)
-    before = agent._V[:2].copy()
-    assert core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i, agent._mem_f,
-                           agent._e_xs, *agent._model.a, 0, 0, np.array([1.0, 1.0]), np.array([2.0, 2.0])) == -1
-    assert np.array_equal(agent._V[:2], before) and agent.n_cells == 2
+    before = agent._ag.V[:2].copy()
+    assert core.split_cell(agent._ag, agent._model.a, 0, 0, np.array([1.0, 1.0]), np.array([2.0, 2.0])) == -1
+    assert np.array_equal(agent._ag.V[:2], before) and agent.n_cells == 2
 
 
 def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
-    def env():
-        return gym.make("avq/GridMaze-v0")
-
+    env = lambda: gym.make("avq/GridMaze-v0")
     agent = avq.make_agent("avq-plan", env(), seed=0)
     for _ in range(20):
         agent.learn(total_episodes=10)
@@ -324,7 +316,7 @@ def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
     # Cell 0 at (2, 2), cell 1 at (2, 5). Decision 0 from (1, 2) to cell 0, and from (3, 1) and (3, 3) to cell 1
     # (that successor's mean start: (3, 2)). Cut around (1, 2) and (3, 1): the groups' mean starts are (1, 2)
     # and (3, 2). With another vector at (4, 2), at distance 1 = d_min of (3, 2), the split is refused
-    # (SPEC §3); the starts (3, 1) and (3, 3) tie between (2, 2) and (4, 2): cell 0.
+    # (docs: explanation/paper.md, Growing); the starts (3, 1) and (3, 3) tie between (2, 2) and (4, 2): cell 0.
     for extra, expected in ((None, 2), ((4.0, 2.0), -1)):
         agent = plan_agent(d_min=1.0)
         add_cell(agent, (2.0, 2.0))
@@ -333,15 +325,13 @@ def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
             add_cell(agent, extra)
         for xs, x in (((1, 2), (1, 1)), ((3, 1), (2, 5)), ((3, 3), (2, 5))):
             assert remember(agent, xs, 0, x, -1.0)[0] == 0
-        before = agent._V[: agent.n_cells].copy()
-        got = core.split_cell(agent._V, agent._inv_scale, agent._P, agent._S, agent._mem_x, agent._mem_i,
-                              agent._mem_f, agent._e_xs, *agent._model.a, 0, 0, np.array([1.0, 2.0]),
-                              np.array([3.0, 1.0]))
+        before = agent._ag.V[: agent.n_cells].copy()
+        got = core.split_cell(agent._ag, agent._model.a, 0, 0, np.array([1.0, 2.0]), np.array([3.0, 1.0]))
         assert got == expected
         if expected < 0:
-            assert np.array_equal(agent._V[: agent.n_cells], before) and agent.n_cells == 3
+            assert np.array_equal(agent._ag.V[: agent.n_cells], before) and agent.n_cells == 3
         else:
-            assert agent._V[0].tolist() == [1.0, 2.0] and agent._V[2].tolist() == [3.0, 2.0]
+            assert agent._ag.V[0].tolist() == [1.0, 2.0] and agent._ag.V[2].tolist() == [3.0, 2.0]
 
 
 def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
@@ -362,7 +352,7 @@ def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
     agent.learn(total_episodes=1)
     assert agent.n_cells == 3 and agent.codebook_[2].tolist() == [1.0, 0.0]
     # The last transition starts in the new cell: (2, 0) -> 1, the episode's end.
-    assert agent._mem_i[4].tolist() == [0, 2, -1]
+    assert agent._ag.mem_i[4].tolist() == [0, 2, -1]
 
 
 def test_the_models_public_queue_and_sweep_back_up_a_queued_state():

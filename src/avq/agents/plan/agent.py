@@ -8,14 +8,35 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._numba import direct_call
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _maze_loop
-from avq.agents.plan import model as _model
-from avq.agents.plan.fused import run_plan_maze
-from avq.agents.plan import kernels as core
-from avq.agents._spaces import (RunningSpread, check_box_discrete, load_scale_state, normalize_obs_bounds,
-                                refresh_scale, scale_setting, scale_state)
+from avq.agents._params import pack_params
+from avq.agents._spaces import (
+    RunningSpread,
+    check_box_discrete,
+    load_scale_state,
+    normalize_obs_bounds,
+    refresh_scale,
+    scale_setting,
+    scale_state,
+)
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.plan import kernels as core, memory, model as _model
+from avq.agents.plan.fused import maze_types, run_plan_maze
+from avq.agents.plan.state import (
+    ACTION,
+    EP_STEPS,
+    GEOM,
+    IN_EPISODE,
+    MEM_N,
+    N_F,
+    N_S,
+    SIZE,
+    PlanArrays,
+    PlanIntParam,
+    PlanParam,
+)
 from avq.quantizer import Codebook
 
 __all__ = ["PlanningAVQ"]
@@ -25,8 +46,8 @@ class PlanningAVQ(BaseAgent):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
 
     It acts as AVQ does: one decision per cell of a growing codebook, repeated until the cell
-    changes, a collision, or the end of the episode (SPEC §2). Each such aggregate transition is
-    recorded in a model of the cells (successor counts, mean return and discount, so one
+    changes, a collision, or the end of the episode (docs: explanation/paper.md, Acting). Each such
+    aggregate transition is recorded in a model of the cells (successor counts, mean return and discount, so one
     decision is an SMDP step), and the values are planned from the model by prioritized sweeping
     with ``n_backups`` backups per transition (src/avq/agents/plan/model.py). Pairs of a cell and an
     action tried fewer than ``known_after`` times are worth ``v_opt``, so the agent tries each
@@ -45,7 +66,7 @@ class PlanningAVQ(BaseAgent):
             value in force.
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
-            vector, append the observation (SPEC §3).
+            vector, append the observation (docs: explanation/paper.md, Growing).
         outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by
             more than ``split_threshold`` beyond what the distance between their starts explains
             (src/avq/agents/plan/kernels.py).
@@ -154,11 +175,11 @@ class PlanningAVQ(BaseAgent):
     # -- learned state ------------------------------------------------------------------
     @property
     def n_cells(self) -> int:
-        return int(self._S[core.SIZE]) if self._is_setup else 0
+        return int(self._ag.S[SIZE]) if self._is_setup else 0
 
     @property
     def codebook_(self) -> np.ndarray:
-        return self._V[: self.n_cells].copy()
+        return self._ag.V[: self.n_cells].copy()
 
     @property
     def q_(self) -> np.ndarray:
@@ -173,7 +194,7 @@ class PlanningAVQ(BaseAgent):
     @property
     def v_opt_(self) -> float:
         """What an untried decision is worth now (``v_opt``, or with ``"auto"`` its value so far)."""
-        return float(self._model.a.MP[_model.V_OPT]) if self._is_setup else (
+        return float(self._model.a.MP[_model.ModelParam.V_OPT]) if self._is_setup else (
             0.0 if self.v_opt == "auto" else float(self.v_opt))
 
     @property
@@ -186,86 +207,92 @@ class PlanningAVQ(BaseAgent):
 
     def _setup(self) -> None:
         n = self.env.observation_space.shape[0]
-        self._V = np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n))
-        self._inv_scale = 1.0 / self._scale
-        self._P = np.zeros(core.N_P)
-        self._P[[core.GAMMA, core.EPS, core.DMIN, core.SPLIT_THRESHOLD, core.SLOPE]] = (
-            self.gamma, self.epsilon, self.d_min, self.split_threshold,
-            -1.0 if self.value_slope is None else self.value_slope)
-        self._IP = np.zeros(core.N_IP, dtype=np.int64)
-        self._IP[[core.MAX_CELLS, core.BUDGET, core.COLLISION_GROWTH, core.OUTCOME_SPLIT, core.MEMORY,
-                  core.CYCLE_SPLIT, core.SPLIT_AFTER]] = (
-            self.max_cells, self.n_backups, self.collision_growth, self.outcome_split, self.memory, self.cycle_split,
-            0 if self.split_after is None else self.split_after)
-        self._S = np.zeros(core.N_S, dtype=np.int64)
-        self._F = np.zeros(core.N_F + n + 1)
-        self._xs = np.zeros(n)
-        self._mem_x = np.zeros((self.memory, 2 * n))
-        self._mem_i = np.zeros((self.memory, 3), dtype=np.int64)
-        self._mem_f = np.zeros((self.memory, 2))
-        self._e_xs = np.zeros((0, n))
+        values = dict(self.get_params(), value_slope=-1.0 if self.value_slope is None else self.value_slope,
+                      split_after=0 if self.split_after is None else self.split_after)
+        #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
+        self._ag = PlanArrays(
+            V=np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n)), inv_scale=1.0 / self._scale,
+            P=pack_params(PlanParam, values), IP=pack_params(PlanIntParam, values, dtype=np.int64),
+            S=np.zeros(N_S, dtype=np.int64), F=np.zeros(N_F + n + 1), xs=np.zeros(n),
+            mem_x=np.zeros((self.memory, 2 * n)), mem_i=np.zeros((self.memory, 3), dtype=np.int64),
+            mem_f=np.zeros((self.memory, 2)), e_xs=np.zeros((0, n)))
         self._model = _model.Model(self.n_actions, 0.0 if self.v_opt == "auto" else self.v_opt, self.v_min,
                                    self.known_after, self.tol)
         #: The largest reward seen (v_opt="auto").
         self._r_max = -np.inf
         #: The observations counted for scale="auto" (none: no dimension is estimated).
         self._spread = RunningSpread(n, self.scale_warmup if self._estimated.any() else 0)
+        #: The compiled core.step for the argument types of the last step that went through Numba's
+        #: dispatcher (see _advance), or None.
+        self._direct = None
+        #: The fused loop for each maze's types (see _fused_runner).
+        self._loops: dict[tuple, _model.Compiled] = {}
 
     def _make_room(self) -> None:
-        """Room for the cells and edges one step may add (the kernels never reallocate)."""
-        size, cap = int(self._S[core.SIZE]), self._V.shape[0]
+        """Room for the cells and edges one step may add (the kernels never reallocate). A reallocated array
+        has the dtype, dimensions and layout of the one it replaces, so the records keep their types."""
+        ag = self._ag
+        size, cap = int(ag.S[SIZE]), ag.V.shape[0]
         if size + core.APPENDS_PER_STEP > cap:
-            new = np.zeros((max(2 * cap, size + core.APPENDS_PER_STEP), self._V.shape[1]))
-            new[:cap] = self._V
-            self._V = new
-        self._model.reserve(states=core.APPENDS_PER_STEP,
-                            edges=core.APPENDS_PER_STEP * (int(self._S[core.MEM_N]) + 1))
+            new = np.zeros((max(2 * cap, size + core.APPENDS_PER_STEP), ag.V.shape[1]))
+            new[:cap] = ag.V
+            ag = self._ag = ag._replace(V=new)
+        self._model.reserve(states=core.APPENDS_PER_STEP, edges=core.APPENDS_PER_STEP * (int(ag.S[MEM_N]) + 1))
         edges = self._model.a.e_to.shape[0]
-        if self._e_xs.shape[0] < edges:
-            grown = np.zeros((edges, self._e_xs.shape[1]))
-            grown[: len(self._e_xs)] = self._e_xs
-            self._e_xs = grown
-
-    def _arrays(self) -> tuple:
-        return (self._V, self._inv_scale, self._P, self._IP, self._S, self._F, self._xs, self._mem_x, self._mem_i,
-                self._mem_f, self._e_xs, *self._model.a)
+        if ag.e_xs.shape[0] < edges:
+            grown = np.zeros((edges, ag.e_xs.shape[1]))
+            grown[: len(ag.e_xs)] = ag.e_xs
+            self._ag = ag._replace(e_xs=grown)
 
     # -- the episode loop -----------------------------------------------------------------
     def _begin_episode(self, obs: Any) -> None:
         x = self._as_obs(obs, 0)
         self._make_room()
         self._draws.reserve()
-        if core.start(*self._arrays(), self._draws.src, x) == core.NOT_FINITE:
+        if core.start(self._ag, self._model.a, self._draws.src, x) == core.NOT_FINITE:
             self._refuse_non_finite(obs, 0.0, 0)
         self._spread.add(x)
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self._xs.shape:
-            raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._xs.shape}")
+        if x.shape != self._ag.xs.shape:
+            raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._ag.xs.shape}")
         return x
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        env_step, S, draws = self.env.step, self._S, self._draws
+        # One compiled call per step (core.step). Once a step has gone through Numba's dispatcher, later steps
+        # call the compiled function it chose directly (avq._numba.direct_call), which skips typing the records
+        # at every call. The arguments keep their types: the records' arrays are reallocated with the same
+        # dtypes, dimensions and layout (_make_room, Model.reserve), x is a float64 vector of the space's shape,
+        # r a float; an x that is not a writable C-contiguous array goes through the dispatcher.
+        env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
+        direct = self._direct
         count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
         r_max = self._r_max
-        a = int(S[core.ACTION])
+        a = int(S[ACTION])
         n = 0
         while n < max_steps:
             obs, r, terminated, truncated, info = env_step(a)
             n += 1
-            x = self._as_obs(obs, int(S[core.EP_STEPS]) + 1)
+            x = self._as_obs(obs, int(S[EP_STEPS]) + 1)
             try:
                 r = float(r)
             except (TypeError, ValueError):
-                raise ValueError(f"reward {r!r} at step {int(S[core.EP_STEPS]) + 1} of episode "
+                raise ValueError(f"reward {r!r} at step {int(S[EP_STEPS]) + 1} of episode "
                                  f"{self.num_episodes + 1} is not a number") from None
             self._make_room()
             draws.reserve()
-            a = core.step(*self._arrays(), draws.src, x, r, bool(info.get("collision", False)), bool(terminated),
-                          bool(truncated))
+            args = (self._ag, model.a, draws.src, x, r, bool(info.get("collision", False)), bool(terminated),
+                    bool(truncated))
+            flags = x.flags
+            if direct is not None and flags.c_contiguous and flags.writeable:
+                a = direct(*args)
+            else:
+                a = kernel(*args)
+                if flags.c_contiguous and flags.writeable:
+                    direct = self._direct = direct_call(kernel, args)
             if a == core.NOT_FINITE:
-                self._refuse_non_finite(obs, r, int(S[core.EP_STEPS]) + 1)
+                self._refuse_non_finite(obs, r, int(S[EP_STEPS]) + 1)
             if count is not None and not count(x):
                 count = None
             if r > r_max:
@@ -275,19 +302,16 @@ class PlanningAVQ(BaseAgent):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._estimated.any() and refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread,
+        if self._estimated.any() and refresh_scale(self._scale, self._ag.inv_scale, self._estimated, self._spread,
                                                    self._factor):
             # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
             # follows them (the codebook keeps its vectors in observation units).
-            m = self._model.a
-            core.relocate(self._V, self._inv_scale, self._S, self._mem_x, self._mem_i, self._mem_f, self._e_xs, m.cnt,
-                          m.rsum, m.head, m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r, m.p_head, m.p_sa, m.p_edge,
-                          m.p_next, m.heap, m.hpos, m.prio, m.C, -1, -1)
-            self._S[core.GEOM] += 1
+            memory.relocate(self._ag, self._model.a, -1, -1)
+            self._ag.S[GEOM] += 1
         if self.v_opt == "auto":
             self._model.raise_optimism(self._horizon * max(0.0, self._r_max))
         row = np.zeros(7)
-        core.end_record(self._S, self._F, row)
+        core.end_record(self._ag.S, self._ag.F, row)
         return episode_record(*row)
 
     # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------
@@ -297,15 +321,17 @@ class PlanningAVQ(BaseAgent):
         if maze is None:
             return None
         mz = _maze_loop.maze_arguments(maze)
+        # (called once per learn() or episode: directly after the first call, for this maze's types)
+        loop = self._loops.setdefault(maze_types(mz), _model.Compiled(run_plan_maze))
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_plan_maze(*self._arrays(), self._rng, maze.np_random, mz, pos, budget_steps,
-                                        budget_episodes, rec)
+            return loop(self._ag, self._model.a, self._rng, maze.np_random, mz, pos, int(budget_steps),
+                        int(budget_episodes), rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(maze, kernel, self._make_room, max_steps, max_episodes, max_records)
-            return steps, rows, bool(self._S[core.IN_EPISODE])
+            return steps, rows, bool(self._ag.S[IN_EPISODE])
 
         return run
 
@@ -314,7 +340,7 @@ class PlanningAVQ(BaseAgent):
         """The cell index of each observation (a batch ``(b, n)``)."""
         if self.n_cells == 0:
             raise RuntimeError("PlanningAVQ has no codebook yet; call learn() first")
-        return Codebook.from_vectors(self._V[: self.n_cells], self._scale).nearest_batch(
+        return Codebook.from_vectors(self._ag.V[: self.n_cells], self._scale).nearest_batch(
             np.asarray(observations, dtype=np.float64))
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
@@ -325,9 +351,10 @@ class PlanningAVQ(BaseAgent):
     # -- saving ---------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
-        arrays.update(codebook=self.codebook_, S=self._S.copy(), F=self._F.copy(), xs=self._xs.copy(),
-                      mem_x=self._mem_x.copy(), mem_i=self._mem_i.copy(), mem_f=self._mem_f.copy(),
-                      e_xs=self._e_xs[: int(self._model.a.C[_model.N_EDGES])].copy())
+        ag = self._ag
+        arrays.update(codebook=self.codebook_, S=ag.S.copy(), F=ag.F.copy(), xs=ag.xs.copy(),
+                      mem_x=ag.mem_x.copy(), mem_i=ag.mem_i.copy(), mem_f=ag.mem_f.copy(),
+                      e_xs=ag.e_xs[: int(self._model.a.C[_model.N_EDGES])].copy())
         arrays.update(self._model.state_dict())
         scale_meta, scale_arrays = scale_state(self._scale, self._spread)
         meta.update(scale_meta, reward_max=None if self._r_max == -np.inf else self._r_max)
@@ -337,22 +364,20 @@ class PlanningAVQ(BaseAgent):
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         super()._load_state_dict(meta, arrays)
         for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f"):
-            mine = getattr(self, "_" + name)
+            mine = getattr(self._ag, name)
             if arrays[name].shape != mine.shape:
                 raise ValueError(f"array {name} has shape {arrays[name].shape}; expected {mine.shape}")
             mine[:] = arrays[name]
-        codebook = arrays["codebook"]
-        if codebook.shape != (int(self._S[core.SIZE]), self._V.shape[1]):
-            raise ValueError(f"array codebook has shape {codebook.shape}; expected "
-                             f"({int(self._S[core.SIZE])}, {self._V.shape[1]})")
+        codebook, size, n = arrays["codebook"], int(self._ag.S[SIZE]), self._ag.xs.shape[0]
+        if codebook.shape != (size, n):
+            raise ValueError(f"array codebook has shape {codebook.shape}; expected ({size}, {n})")
         self._model.load_state_dict(arrays)
         self._make_room()  # (room for the loaded cells and edges)
-        self._V[: len(codebook)] = codebook
-        e_xs = arrays["e_xs"]
-        if e_xs.shape != (int(self._model.a.C[_model.N_EDGES]), self._xs.shape[0]):
-            raise ValueError(f"array e_xs has shape {e_xs.shape}; expected "
-                             f"({int(self._model.a.C[_model.N_EDGES])}, {self._xs.shape[0]})")
-        self._e_xs[: len(e_xs)] = e_xs
+        self._ag.V[: len(codebook)] = codebook
+        e_xs, edges = arrays["e_xs"], int(self._model.a.C[_model.N_EDGES])
+        if e_xs.shape != (edges, n):
+            raise ValueError(f"array e_xs has shape {e_xs.shape}; expected ({edges}, {n})")
+        self._ag.e_xs[: len(e_xs)] = e_xs
         load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
         self._r_max = -np.inf if meta.get("reward_max") is None else float(meta["reward_max"])
-        self._inv_scale[:] = 1.0 / self._scale
+        self._ag.inv_scale[:] = 1.0 / self._scale

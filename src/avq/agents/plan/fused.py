@@ -1,47 +1,74 @@
 """The model-based agents trained on a built-in maze inside one compiled loop: ``avq-plan``
 (:func:`run_plan_maze`) and ``tabular-ps`` (:func:`run_ps_grid_maze`). The shared driver:
-:mod:`avq.agents._maze_loop`."""
+:mod:`avq.agents._maze_loop`.
+
+Each loop borrows every array it is given (:func:`avq._numba.borrowed`): it rebuilds the records
+(:class:`~avq.agents.plan.state.PlanArrays`, :class:`~avq.agents.plan.model.ModelArrays`,
+:class:`PSTable`, :class:`~avq.agents._maze_loop.Maze`) from borrowed views, so that handing them
+on to the kernels counts no references.
+"""
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from avq._numba import borrowed
-from avq.quantizer import nearest_index
-from avq.agents._maze_loop import (DONE, NEED_CAPACITY, RECORDS_FULL, borrowed_maze, maze_move, maze_observation,
-                                   maze_start)
+from avq.agents._maze_loop import (
+    DONE,
+    NEED_CAPACITY,
+    RECORDS_FULL,
+    Maze,
+    borrowed_maze,
+    maze_move,
+    maze_observation,
+    maze_start,
+)
 from avq.agents._td import epsilon_greedy
-from avq.agents.plan import kernels as plan_core
-from avq.agents.plan import model as _model
+from avq.agents.plan import kernels as plan_core, model as _model
+from avq.agents.plan.model import ModelArrays, borrowed_model
+from avq.agents.plan.state import ACTION, GEOM, IN_EPISODE, SIZE, PlanArrays, borrowed_plan
+from avq.quantizer import nearest_index
 
-__all__ = ["run_plan_maze", "run_ps_grid_maze"]
+__all__ = ["run_plan_maze", "run_ps_grid_maze", "PSTable", "maze_types"]
+
+# T: the episode of tabular-ps's fused loop (int): current row, current action, episode steps, rows added this
+# episode, in-episode flag
+T_ROW, T_ACTION, T_STEPS, T_NEW, T_IN_EPISODE = range(5)
+N_T = 5
 
 
-@njit(cache=True, inline="always")
-def _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                    prio, C, MP):
-    """The model's arrays (:class:`avq.agents.plan.model.ModelArrays`) as borrowed views, for a fused loop."""
-    return (borrowed(cnt), borrowed(rsum), borrowed(head), borrowed(Q), borrowed(Vm), borrowed(e_to), borrowed(e_next),
-            borrowed(e_n), borrowed(e_disc), borrowed(e_r), borrowed(p_head), borrowed(p_sa), borrowed(p_edge),
-            borrowed(p_next), borrowed(heap), borrowed(hpos), borrowed(prio), borrowed(C), borrowed(MP))
+def maze_types(mz: Maze) -> tuple:
+    """What Numba's type of ``mz`` depends on, cheaply (its fields' Python types, and its arrays' dtypes,
+    dimensions and layout): a key under which an agent keeps the compiled loop it calls directly."""
+    return tuple((type(v), v.dtype, v.ndim, v.flags.c_contiguous) if isinstance(v, np.ndarray) else type(v)
+                 for v in mz)
+
+
+class PSTable(NamedTuple):
+    """``tabular-ps``'s table on a GridMaze, as its fused loop reads and writes it."""
+
+    #: ``(h, w)`` the state of each square (-1: not visited yet).
+    row_of: np.ndarray
+    #: ``(h * w, 2)`` the square ``(x, y)`` of each state.
+    keys: np.ndarray
+    #: The episode (indices ``T_*``).
+    T: np.ndarray
+    #: ``TF[0]``: the episode's return.
+    TF: np.ndarray
 
 
 @njit(cache=True)
-def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to, e_next, e_n,
-                  e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, env_rng, mz, pos, budget_steps,
-                  budget_episodes, rec):
+def run_plan_maze(ag: PlanArrays, m: ModelArrays, rng, env_rng, mz: Maze, pos, budget_steps, budget_episodes, rec):
     """Train ``avq-plan`` on a maze: :func:`avq.agents.plan.kernels.start` and ``step`` at every step, as
     ``PlanningAVQ`` does stepping the environment. On GridMaze the nearest cell of every square is kept
     while the codebook does not change. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
     arrays may not hold what the next step adds."""
-    (V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs) = (
-        borrowed(V), borrowed(inv_scale), borrowed(P), borrowed(IP), borrowed(S), borrowed(F), borrowed(xs),
-        borrowed(mem_x), borrowed(mem_i), borrowed(mem_f), borrowed(e_xs))
-    (cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
-     MP) = _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
-                           hpos, prio, C, MP)
+    ag, m = borrowed_plan(ag), borrowed_model(m)
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
+    V, inv_scale, S = ag.V, ag.inv_scale, ag.S
     steps = 0
     episodes = 0
     x = np.empty(V.shape[1])
@@ -51,113 +78,112 @@ def run_plan_maze(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt,
     dist_cache = np.zeros(cache_shape)
     cache_geom = -1
     while True:
-        if not plan_core.room_left(V, S, C, e_to, cnt) or e_xs.shape[0] < e_to.shape[0]:
+        if not plan_core.room_left(ag, m) or ag.e_xs.shape[0] < m.e_to.shape[0]:
             return steps, episodes, NEED_CAPACITY
-        if S[plan_core.IN_EPISODE] == 0:
+        if S[IN_EPISODE] == 0:
             if steps >= budget_steps or episodes >= budget_episodes:
                 return steps, episodes, DONE
             if episodes >= rec.shape[0]:
                 return steps, episodes, RECORDS_FULL
             maze_start(env_rng, pos, mz)
             maze_observation(x, pos, mz, sonar)
-            plan_core.start(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm, e_to,
-                            e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, rng, x)
+            plan_core.start(ag, m, rng, x)
             continue
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, collision = maze_move(env_rng, pos, S[plan_core.ACTION], mz)
+        r, terminated, collision = maze_move(env_rng, pos, S[ACTION], mz)
         truncated = pos[2] >= mz.max_episode_steps
         maze_observation(x, pos, mz, sonar)
         steps += 1
         if mz.robot:
-            j, d2 = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
+            j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
         else:
-            if cache_geom != S[plan_core.GEOM]:
+            if cache_geom != S[GEOM]:
                 cell_cache[:, :] = -1
-                cache_geom = S[plan_core.GEOM]
+                cache_geom = S[GEOM]
             iy, ix = int(pos[1]), int(pos[0])
             if cell_cache[iy, ix] < 0:
-                cell_cache[iy, ix], dist_cache[iy, ix] = nearest_index(V, S[plan_core.SIZE], x, inv_scale)
+                cell_cache[iy, ix], dist_cache[iy, ix] = nearest_index(V, S[SIZE], x, inv_scale)
             j, d2 = cell_cache[iy, ix], dist_cache[iy, ix]
-        if plan_core.goes_on(P, IP, S, F, r, j, d2, collision, terminated or truncated):
+        if plan_core.goes_on(ag, r, j, d2, collision, terminated or truncated):
             continue
-        a = plan_core.end_transition(V, inv_scale, P, IP, S, F, xs, mem_x, mem_i, mem_f, e_xs, cnt, rsum, head, Q, Vm,
-                                     e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
-                                     MP, rng, x, collision, terminated, truncated, j, d2)
+        a = plan_core.end_transition(ag, m, rng, x, collision, terminated, truncated, j, d2)
         if a == plan_core.ENDED:
-            plan_core.end_record(S, F, rec[episodes])
+            plan_core.end_record(S, ag.F, rec[episodes])
             episodes += 1
 
 
+@njit(cache=True, inline="always")
+def _borrowed_table(table: PSTable) -> PSTable:
+    return PSTable(borrowed(table.row_of), borrowed(table.keys), borrowed(table.T), borrowed(table.TF))
+
+
+@njit(cache=True, inline="always")
+def _no_room(m: ModelArrays) -> bool:
+    """Whether the model may not hold a new state and a new edge."""
+    return m.C[_model.N_STATES] + 1 > m.cnt.shape[0] or m.C[_model.N_EDGES] + 1 > m.e_to.shape[0]
+
+
 @njit(cache=True)
-def run_ps_grid_maze(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                     prio, C, MP, row_of, keys, T, TF, gamma, epsilon, n_backups, rng, env_rng, mz, pos, budget_steps,
-                     budget_episodes, rec):
+def run_ps_grid_maze(m: ModelArrays, table: PSTable, gamma, epsilon, n_backups, rng, env_rng, mz: Maze, pos,
+                     budget_steps, budget_episodes, rec):
     """Prioritized sweeping (``tabular-ps``) on a GridMaze: a state for every position on its first visit and
     :func:`avq.agents.plan.model.ps_step` at every step, as ``PrioritizedSweeping`` does stepping the
-    environment. ``T``: current row, current action, episode steps, rows added this episode, in-episode
-    flag; ``TF[0]``: episode return. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
-    model may not hold a new state and a new edge."""
-    (cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
-     MP) = _borrowed_model(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
-                           hpos, prio, C, MP)
-    row_of, keys, T, TF = borrowed(row_of), borrowed(keys), borrowed(T), borrowed(TF)
+    environment. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the model may not hold a new
+    state and a new edge."""
+    m, table = borrowed_model(m), _borrowed_table(table)
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
+    row_of, keys, T, TF = table.row_of, table.keys, table.T, table.TF  # (written: see the note on ModelArrays)
     steps = 0
     episodes = 0
     while True:
-        if C[_model.N_STATES] + 1 > cnt.shape[0] or C[_model.N_EDGES] + 1 > e_to.shape[0]:
+        if _no_room(m):
             return steps, episodes, NEED_CAPACITY
-        if T[4] == 0:
+        if T[T_IN_EPISODE] == 0:
             if steps >= budget_steps or episodes >= budget_episodes:
                 return steps, episodes, DONE
             if episodes >= rec.shape[0]:
                 return steps, episodes, RECORDS_FULL
             maze_start(env_rng, pos, mz)
-            T[2] = 0
-            T[3] = 0
+            T[T_STEPS] = 0
+            T[T_NEW] = 0
             TF[0] = 0.0
-            T[0] = _ps_row(row_of, keys, T, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa,
-                           p_edge, p_next, heap, hpos, prio, C, MP, int(pos[0]), int(pos[1]))
-            T[1] = epsilon_greedy(rng, Q, T[0], epsilon)
-            T[4] = 1
+            T[T_ROW] = _ps_row(row_of, keys, T, m, int(pos[0]), int(pos[1]))
+            T[T_ACTION] = epsilon_greedy(rng, m.Q, T[T_ROW], epsilon)
+            T[T_IN_EPISODE] = 1
             continue
         if steps >= budget_steps:
             return steps, episodes, DONE
-        r, terminated, _ = maze_move(env_rng, pos, T[1], mz)
+        r, terminated, _ = maze_move(env_rng, pos, T[T_ACTION], mz)
         truncated = pos[2] >= mz.max_episode_steps
         steps += 1
-        T[2] += 1
+        T[T_STEPS] += 1
         TF[0] += r
-        s2 = _ps_row(row_of, keys, T, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge,
-                     p_next, heap, hpos, prio, C, MP, int(pos[0]), int(pos[1]))
-        T[1] = _model.ps_step(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
-                          hpos, prio, C, MP, rng, T[0], T[1], r, gamma, s2, terminated, epsilon, n_backups)
-        T[0] = s2
+        s2 = _ps_row(row_of, keys, T, m, int(pos[0]), int(pos[1]))
+        T[T_ACTION] = _model.ps_step(m, rng, T[T_ROW], T[T_ACTION], r, gamma, s2, terminated, epsilon, n_backups)
+        T[T_ROW] = s2
         if terminated or truncated:
-            T[4] = 0
-            rec[episodes, 0] = T[2]
+            T[T_IN_EPISODE] = 0
+            rec[episodes, 0] = T[T_STEPS]
             rec[episodes, 1] = TF[0]
-            rec[episodes, 2] = C[_model.N_STATES]
-            rec[episodes, 3] = T[3]
+            rec[episodes, 2] = m.C[_model.N_STATES]
+            rec[episodes, 3] = T[T_NEW]
             rec[episodes, 4] = 0
             rec[episodes, 5] = 0
-            rec[episodes, 6] = T[2]
+            rec[episodes, 6] = T[T_STEPS]
             episodes += 1
-            if C[_model.N_STATES] + 1 > cnt.shape[0] or C[_model.N_EDGES] + 1 > e_to.shape[0]:
+            if _no_room(m):
                 return steps, episodes, NEED_CAPACITY
 
 
 @njit(cache=True, inline="always")
-def _ps_row(row_of, keys, T, cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap,
-            hpos, prio, C, MP, x, y):
-    """The state of position (x, y), made (in order of first visit) when new."""
+def _ps_row(row_of, keys, T, m: ModelArrays, x, y):
+    """The state of position (x, y), made (in order of first visit) when new (the arrays of a :class:`PSTable`)."""
     r = row_of[y, x]
     if r < 0:
-        r = _model.add_state(cnt, rsum, head, Q, Vm, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next,
-                             heap, hpos, prio, C, MP)
+        r = _model.add_state(m)
         row_of[y, x] = r
         keys[r, 0] = x
         keys[r, 1] = y
-        T[3] += 1
+        T[T_NEW] += 1
     return r

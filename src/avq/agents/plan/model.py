@@ -2,10 +2,10 @@
 
 One implementation serves every model-based agent: ``tabular-ps`` (a state is a distinct
 observation, a transition one environment step) and ``avq-plan`` (a state is a cell of the
-codebook, a transition one aggregate transition of SPEC §2, ``k`` steps long). The model keeps,
-for each pair ``(s, a)``, the number of transitions ``n(s, a)``, the sum of their returns, and for
-each successor ``s'`` seen the sum of the discounts ``gamma ** k`` of the transitions that reached
-it (a terminal successor is ``-1``, worth 0). So the model is right for stochastic tasks and for
+codebook, a transition one aggregate transition, ``k`` steps long; docs:
+explanation/paper.md, Acting). The model keeps, for each pair ``(s, a)``, the number of transitions
+``n(s, a)``, the sum of their returns, and for each successor ``s'`` seen the sum of the discounts
+``gamma ** k`` of the transitions that reached it (a terminal successor is ``-1``, worth 0). So the model is right for stochastic tasks and for
 transitions of any duration (an SMDP step):
 
     Q(s, a) = ( sum R + sum_{s'} (sum gamma ** k to s') * V(s') ) / n(s, a)      V(s) = max_a Q(s, a)
@@ -30,36 +30,62 @@ Arrays (capacity ``S`` states, ``m`` actions, ``E`` edges), held by :class:`Mode
 the first edge of the pair's successor list; ``Q`` ``(S, m)``, ``V`` ``(S,)`` the planned values;
 edges ``e_to``, ``e_next``, ``e_n`` (transitions), ``e_disc`` (discount mass), ``e_r`` (returns); predecessors, one
 entry per edge into a state: ``p_head`` ``(S,)``, ``p_sa`` (``q * m + b``), ``p_edge``, ``p_next``;
-the queue: ``heap``, ``hpos`` (place in the heap or -1), ``prio``; counters ``C`` and float
-parameters ``MP`` (index names below).
+the queue: ``heap``, ``hpos`` (place in the heap or -1), ``prio``; counters ``C`` (index names below) and
+float parameters ``MP`` (declared by :class:`ModelParam`). The compiled functions take them as one
+record, :class:`ModelArrays` (``m.cnt``, ``m.Q``...), and the few small ones of the queue (``push``,
+``pop``) only the arrays they touch.
 """
 
 from __future__ import annotations
 
+from enum import auto
 from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
+from avq._numba import borrowed, direct_call
+from avq.agents._params import ParamIndex, pack_params
 from avq.agents._td import epsilon_greedy
+from avq.agents.plan.queue import HEAP_N, pop, push
 
-__all__ = ["Model", "ModelArrays", "PLANNING_PARAMS"]
+__all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "Compiled"]
 
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
 
-# C: int counters and parameters
-N_STATES, N_EDGES, N_PREDS, HEAP_N, BACKUPS, KNOWN = range(6)
+# C: int counters (and ``known``, the one int parameter, kept with them as saved model files hold it there);
+# C[HEAP_N] (3) is the queue's length (avq.agents.plan.queue)
+N_STATES, N_EDGES, N_PREDS, _, BACKUPS, KNOWN = range(6)
 N_C = 6
-# MP: float parameters
-V_OPT, V_MIN, TOL = range(3)
-N_MP = 3
+
+
+class ModelParam(ParamIndex):
+    """``MP``: the model's float parameters, read by :func:`backup` and :func:`propagate`."""
+
+    V_OPT = auto()  # value of a pair not yet known (optimism)
+    V_MIN = auto()  # floor of every known value
+    TOL = auto()  # smallest change of a value that is propagated
+
 #: The priority that makes a state's backup come first.
 FIRST = 1e300
 
 
 class ModelArrays(NamedTuple):
-    """The model's arrays, in the order the compiled functions take them."""
+    """The model's arrays: the record the compiled functions take (as ``m``), and the order of a model file.
+
+    A function takes the arrays it uses into local names once (``cnt = m.cnt``), not in its loops: each
+    ``m.cnt`` is a new reference to count (or, borrowed, to check).
+
+    Beware: in functions inlined at Numba's IR level (``inline="always"``) with a record argument, Numba 0.68
+    silently dropped some writes to the record's arrays: the predecessor lists of :func:`record` (when
+    written through local names inside the agents' kernels, and when written as ``m.p_sa[k] = ...`` inside a
+    fused loop that builds ``m`` itself), and ``tabular-ps``'s table in its fused loop. Those writes are
+    made in functions that are not inlined and take the arrays themselves (:func:`_add_predecessor`,
+    ``fused._ps_row``'s arrays taken by its caller); the bit-for-bit comparison with the previous release
+    caught it. (Numba's on-disk cache does not notice a change to an inlined function of another module:
+    clear ``__pycache__`` when comparing.)
+    """
 
     cnt: np.ndarray
     rsum: np.ndarray
@@ -82,6 +108,33 @@ class ModelArrays(NamedTuple):
     MP: np.ndarray
 
 
+class Compiled:
+    """A compiled function called from Python: through Numba's dispatcher the first time, then directly
+    (:func:`avq._numba.direct_call`). Typing a record of arrays at every call costs the dispatcher several µs,
+    as much as a sweep of a small model. Only for calls whose arguments keep their types: records whose arrays
+    are reallocated with the same dtypes, dimensions and layout (:meth:`Model.reserve`), ints, floats, bools."""
+
+    def __init__(self, dispatcher: Any) -> None:
+        self.dispatcher = dispatcher
+        self.entry: Any = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self.entry is not None:
+            return self.entry(*args)
+        out = self.dispatcher(*args)
+        self.entry = direct_call(self.dispatcher, args)
+        return out
+
+
+@njit(cache=True, inline="always")
+def borrowed_model(m: ModelArrays) -> ModelArrays:
+    """``m`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for a fused loop's own use."""
+    return ModelArrays(borrowed(m.cnt), borrowed(m.rsum), borrowed(m.head), borrowed(m.Q), borrowed(m.V),
+                       borrowed(m.e_to), borrowed(m.e_next), borrowed(m.e_n), borrowed(m.e_disc), borrowed(m.e_r),
+                       borrowed(m.p_head), borrowed(m.p_sa), borrowed(m.p_edge), borrowed(m.p_next), borrowed(m.heap),
+                       borrowed(m.hpos), borrowed(m.prio), borrowed(m.C), borrowed(m.MP))
+
+
 def _empty(states: int, m: int, edges: int, v_opt: float) -> ModelArrays:
     return ModelArrays(
         cnt=np.zeros((states, m), dtype=np.int64), rsum=np.zeros((states, m)),
@@ -91,7 +144,7 @@ def _empty(states: int, m: int, edges: int, v_opt: float) -> ModelArrays:
         p_head=np.full(states, -1, dtype=np.int64), p_sa=np.zeros(edges, dtype=np.int64),
         p_edge=np.zeros(edges, dtype=np.int64), p_next=np.zeros(edges, dtype=np.int64),
         heap=np.zeros(states, dtype=np.int64), hpos=np.full(states, -1, dtype=np.int64), prio=np.zeros(states),
-        C=np.zeros(N_C, dtype=np.int64), MP=np.zeros(N_MP),
+        C=np.zeros(N_C, dtype=np.int64), MP=np.zeros(len(ModelParam)),
     )
 
 
@@ -109,8 +162,9 @@ class Model:
     def __init__(self, m: int, v_opt: float, v_min: float, known: int, tol: float, states: int = 64) -> None:
         self.m = m
         self.a = _empty(states, m, 4 * states, v_opt)
-        self.a.MP[:] = v_opt, v_min, tol
+        pack_params(ModelParam, {"v_opt": v_opt, "v_min": v_min, "tol": tol}, out=self.a.MP)
         self.a.C[KNOWN] = known
+        self._add_state, self._sweep = Compiled(add_state), Compiled(sweep)
 
     @property
     def n_states(self) -> int:
@@ -134,7 +188,7 @@ class Model:
         if need_s <= cap_s and need_e <= cap_e:
             return
         grown = lambda need, cap: cap if need <= cap else max(need, 2 * cap)  # noqa: E731
-        new = _empty(grown(need_s, cap_s), self.m, grown(need_e, cap_e), float(a.MP[V_OPT]))
+        new = _empty(grown(need_s, cap_s), self.m, grown(need_e, cap_e), float(a.MP[ModelParam.V_OPT]))
         for old, arr in zip(a, new):
             arr[: len(old)] = old
         self.a = new
@@ -142,15 +196,15 @@ class Model:
     def add_state(self) -> int:
         """A new state, every action unknown (worth ``v_opt``)."""
         self.reserve(states=1)
-        return add_state(*self.a)
+        return self._add_state(self.a)
 
     def raise_optimism(self, v_opt: float) -> None:
         """Make untried pairs worth ``v_opt`` from now on (at least what they were worth): every state is
         backed up once and queued, so that the change reaches its predecessors over the next sweeps."""
         a = self.a
-        if v_opt <= a.MP[V_OPT]:
+        if v_opt <= a.MP[ModelParam.V_OPT]:
             return
-        a.MP[V_OPT] = v_opt
+        a.MP[ModelParam.V_OPT] = v_opt
         for s in range(self.n_states):
             self.queue(s, FIRST)
         self.sweep(self.n_states)
@@ -161,7 +215,7 @@ class Model:
 
     def sweep(self, budget: int) -> int:
         """Back up at most ``budget`` queued states, highest priority first; return how many."""
-        return sweep(*self.a, budget)
+        return self._sweep(self.a, int(budget))
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The arrays in use, for a model file."""
@@ -203,15 +257,16 @@ _DIM = {"cnt": "S", "rsum": "S", "head": "S", "Q": "S", "V": "S", "e_to": "E", "
 
 
 @njit(cache=True)
-def add_state(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
-              C, MP) -> int:
+def add_state(m: ModelArrays) -> int:
+    """A new state, every action unknown (worth ``v_opt``); the caller makes room for it."""
+    cnt, rsum, head, Q, V, p_head, hpos, C = m.cnt, m.rsum, m.head, m.Q, m.V, m.p_head, m.hpos, m.C
     s = C[N_STATES]
     for a in range(Q.shape[1]):
         cnt[s, a] = 0
         rsum[s, a] = 0.0
         head[s, a] = -1
-        Q[s, a] = MP[V_OPT]
-    V[s] = MP[V_OPT]
+        Q[s, a] = m.MP[ModelParam.V_OPT]
+    V[s] = m.MP[ModelParam.V_OPT]
     p_head[s] = -1
     hpos[s] = -1
     C[N_STATES] = s + 1
@@ -219,13 +274,15 @@ def add_state(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_s
 
 
 @njit(cache=True, inline="always")
-def backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s: int) -> float:
+def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
+    cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (m.cnt, m.rsum, m.head, m.Q, m.V, m.e_to, m.e_next,
+                                                           m.e_disc, m.C, m.MP)  # (taken once: see ModelArrays)
     best = -np.inf
     for a in range(Q.shape[1]):
         n = cnt[s, a]
         if n < C[KNOWN]:
-            q = MP[V_OPT]
+            q = MP[ModelParam.V_OPT]
         else:
             total = rsum[s, a]
             e = head[s, a]
@@ -235,8 +292,8 @@ def backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s: int) -> float:
                     total += e_disc[e] * V[t]
                 e = e_next[e]
             q = total / n
-            if q < MP[V_MIN]:
-                q = MP[V_MIN]
+            if q < MP[ModelParam.V_MIN]:
+                q = MP[ModelParam.V_MIN]
         Q[s, a] = q
         if q > best:
             best = q
@@ -247,103 +304,57 @@ def backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s: int) -> float:
 
 
 @njit(cache=True, inline="always")
-def _swap(heap, hpos, i: int, j: int) -> None:
-    si, sj = heap[i], heap[j]
-    heap[i], heap[j] = sj, si
-    hpos[sj], hpos[si] = i, j
-
-
-@njit(cache=True, inline="always")
-def _sift_up(heap, hpos, prio, i: int) -> None:
-    while i > 0:
-        parent = (i - 1) // 2
-        if prio[heap[parent]] >= prio[heap[i]]:
-            return
-        _swap(heap, hpos, i, parent)
-        i = parent
-
-
-@njit(cache=True, inline="always")
-def push(heap, hpos, prio, C, s: int, p: float) -> None:
-    """Queue ``s`` with priority ``p``, or raise its priority to ``p``."""
-    i = hpos[s]
-    if i < 0:
-        i = C[HEAP_N]
-        heap[i] = s
-        hpos[s] = i
-        prio[s] = p
-        C[HEAP_N] = i + 1
-    elif p > prio[s]:
-        prio[s] = p
-    else:
-        return
-    _sift_up(heap, hpos, prio, i)
-
-
-@njit(cache=True, inline="always")
-def pop(heap, hpos, prio, C) -> int:
-    """The queued state of highest priority, taken off the queue."""
-    top = heap[0]
-    n = C[HEAP_N] - 1
-    C[HEAP_N] = n
-    hpos[top] = -1
-    if n > 0:
-        last = heap[n]
-        heap[0] = last
-        hpos[last] = 0
-        i = 0
-        while True:
-            left = 2 * i + 1
-            if left >= n:
-                break
-            best = left
-            if left + 1 < n and prio[heap[left + 1]] > prio[heap[left]]:
-                best = left + 1
-            if prio[heap[best]] <= prio[heap[i]]:
-                break
-            _swap(heap, hpos, i, best)
-            i = best
-    return top
-
-
-@njit(cache=True, inline="always")
-def propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s: int, dv: float) -> None:
+def propagate(m: ModelArrays, s: int, dv: float) -> None:
     """Queue each known predecessor pair's state of ``s`` by how much ``V[s]``'s change ``dv`` moves it."""
-    m = cnt.shape[1]
+    cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next = m.cnt, m.e_n, m.e_disc, m.p_head, m.p_sa, m.p_edge, m.p_next
+    heap, hpos, prio, C, tol = m.heap, m.hpos, m.prio, m.C, m.MP[ModelParam.TOL]  # (taken once: see ModelArrays)
+    n_actions = cnt.shape[1]
     k = p_head[s]
     while k >= 0:
-        q = p_sa[k] // m
-        b = p_sa[k] - q * m
+        q = p_sa[k] // n_actions
+        b = p_sa[k] - q * n_actions
         e = p_edge[k]
         n = cnt[q, b]
         if n >= C[KNOWN] and e_n[e] > 0:
             p = dv * e_disc[e] / n
-            if p > MP[TOL]:
+            if p > tol:
                 push(heap, hpos, prio, C, q, p)
         k = p_next[k]
 
 
 @njit(cache=True, inline="always")
-def sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
-          budget: int) -> int:
+def sweep(m: ModelArrays, budget: int) -> int:
     """Back up at most ``budget`` queued states, highest priority first; return how many."""
+    heap, hpos, prio, C = m.heap, m.hpos, m.prio, m.C  # (written: see the note on ModelArrays)
     done = 0
     while C[HEAP_N] > 0 and done < budget:
         s = pop(heap, hpos, prio, C)
-        dv = backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s)
+        dv = backup(m, s)
         done += 1
-        if dv > MP[TOL]:
-            propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s, dv)
+        if dv > m.MP[ModelParam.TOL]:
+            propagate(m, s, dv)
     return done
 
 
+@njit(cache=True)
+def _add_predecessor(p_head, p_sa, p_edge, p_next, C, sa: int, e: int, s2: int) -> None:
+    """Enter edge ``e`` of pair ``sa`` (``s * m + a``) in the predecessor list of ``s2``. (Not inlined at Numba's
+    IR level: see the note on :class:`ModelArrays`; it runs once per new edge.)"""
+    k = C[N_PREDS]
+    C[N_PREDS] = k + 1
+    p_sa[k] = sa
+    p_edge[k] = e
+    p_next[k] = p_head[s2]
+    p_head[s2] = k
+
+
 @njit(cache=True, inline="always")
-def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s: int, a: int, r: float,
-           disc: float, s2: int, sign: int) -> int:
+def record(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, sign: int) -> int:
     """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal) of return ``r`` and
     discount ``disc``; return its edge. A successor seen for the first time takes an edge (and a
     predecessor entry): the caller makes room for one."""
-    m = cnt.shape[1]
+    cnt, rsum, head, C = m.cnt, m.rsum, m.head, m.C
+    e_to, e_next, e_n, e_disc, e_r = m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r
     cnt[s, a] += sign
     rsum[s, a] += sign * r
     if cnt[s, a] == 0:
@@ -361,12 +372,7 @@ def record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge
         e_disc[e] = 0.0
         e_r[e] = 0.0
         if s2 >= 0:
-            k = C[N_PREDS]
-            C[N_PREDS] = k + 1
-            p_sa[k] = s * m + a
-            p_edge[k] = e
-            p_next[k] = p_head[s2]
-            p_head[s2] = k
+            _add_predecessor(m.p_head, m.p_sa, m.p_edge, m.p_next, C, s * cnt.shape[1] + a, e, s2)
     e_n[e] += sign
     e_disc[e] += sign * disc
     e_r[e] += sign * r
@@ -389,35 +395,30 @@ def settled(cnt, C, s: int) -> bool:
 
 
 @njit(cache=True, inline="always")
-def settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP,
-           s: int, budget: int) -> int:
+def settle(m: ModelArrays, s: int, budget: int) -> int:
     """Back up ``s`` at once (its statistics changed), queue its predecessors by how much that moved it,
     and sweep at most ``budget`` more states. Returns the backups done."""
-    dv = backup(cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP, s)
-    if dv > MP[TOL]:
-        propagate(cnt, e_n, e_disc, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C, MP, s, dv)
-    return 1 + sweep(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                     prio, C, MP, budget)
+    dv = backup(m, s)
+    if dv > m.MP[ModelParam.TOL]:
+        propagate(m, s, dv)
+    return 1 + sweep(m, budget)
 
 
 @njit(cache=True, inline="always")
-def observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio, C,
-            MP, s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
+def observe(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
     """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), then
     :func:`settle` ``s``. Returns the backups done."""
-    record(cnt, rsum, head, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, C, s, a, r, disc, s2, 1)
-    return settle(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                  prio, C, MP, s, budget)
+    record(m, s, a, r, disc, s2, 1)
+    return settle(m, s, budget)
 
 
 @njit(cache=True, inline="always")
-def ps_step(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos, prio,
-               C, MP, src, s, a, r, gamma, s2, terminated, epsilon, budget) -> int:
+def ps_step(m: ModelArrays, src, s: int, a: int, r: float, gamma: float, s2: int, terminated: bool, epsilon: float,
+            budget: int) -> int:
     """One step of ``tabular-ps`` (a state per observation): record ``(s, a) -> s2`` with reward ``r`` and
     discount ``gamma`` (terminal: no successor), plan (:func:`observe`), then the next action in ``s2``,
     ε-greedy (``a`` itself on a terminal step, which draws nothing). Both paths call it."""
-    observe(cnt, rsum, head, Q, V, e_to, e_next, e_n, e_disc, e_r, p_head, p_sa, p_edge, p_next, heap, hpos,
-                   prio, C, MP, s, a, r, gamma, -1 if terminated else s2, budget)
+    observe(m, s, a, r, gamma, -1 if terminated else s2, budget)
     if terminated:
         return a
-    return epsilon_greedy(src, Q, s2, epsilon)
+    return epsilon_greedy(src, m.Q, s2, epsilon)

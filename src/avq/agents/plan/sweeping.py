@@ -10,15 +10,16 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._numba import direct_call
 from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
-from avq.agents._per_step import PerStepAgent
 from avq.agents import _maze_loop
-from avq.agents.plan import model as _model
-from avq.agents.plan.fused import run_ps_grid_maze
-from avq.agents.baselines.grid import bin_coordinates, uniform_grid
-from avq.agents.baselines.table import greedy_over_rows, observation_key
+from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds
 from avq.agents.base import EpisodeRecord, episode_record
+from avq.agents.baselines.grid import bin_coordinates, uniform_grid
+from avq.agents.baselines.table import greedy_over_rows, observation_key
+from avq.agents.plan import model as _model
+from avq.agents.plan.fused import PSTable, maze_types, run_ps_grid_maze
 
 __all__ = ["PrioritizedSweeping"]
 
@@ -140,6 +141,11 @@ class PrioritizedSweeping(PerStepAgent):
         self._keys: list[Any] = []
         self._ep_row = self._ep_action = self._ep_steps = self._ep_new = 0
         self._ep_return = 0.0
+        #: The compiled ps_step for the argument types of the last step that went through Numba's dispatcher
+        #: (see _advance), or None.
+        self._direct = None
+        #: The fused loop for each maze's types (see _fused_runner).
+        self._loops: dict[tuple, _model.Compiled] = {}
 
     def _key(self, obs: Any) -> Any:
         """The state's key: its flat bin index with ``bins``, else the observation's (a Discrete index or a tuple)."""
@@ -173,14 +179,25 @@ class PrioritizedSweeping(PerStepAgent):
         self._ep_action = self._decide(self._model.a.Q[self._ep_row])
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        draws, model = self._draws, self._model
+        # One compiled call per step (ps_step). After the first, through Numba's dispatcher, the compiled function
+        # it chose is called directly (avq._numba.direct_call), which skips typing the model's record at every
+        # call: the arguments keep their types (Model.reserve reallocates with the same dtypes, dimensions and
+        # layout; the rest are ints, floats and a bool).
+        draws, model, kernel = self._draws, self._model, _model.ps_step
+        gamma, epsilon, n_backups = self.gamma, self.epsilon, self.n_backups
 
         def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:
             s2 = self._row(obs)
             model.reserve(edges=1)
             draws.reserve()
-            return s2, int(_model.ps_step(*model.a, draws.src, s, a, r, self.gamma, s2, terminated, self.epsilon,
-                                      self.n_backups))
+            args = (model.a, draws.src, s, a, r, gamma, s2, terminated, epsilon, n_backups)
+            direct = self._direct
+            if direct is None:
+                a = kernel(*args)
+                self._direct = direct_call(kernel, args)
+            else:
+                a = direct(*args)
+            return s2, int(a)
 
         self._ep_row, self._ep_action, n, ended = self._sarsa_steps(max_steps, self._ep_row, self._ep_action, update)
         return n, ended
@@ -196,13 +213,15 @@ class PrioritizedSweeping(PerStepAgent):
         h, w = maze.dynamics.walls.shape
         mz = _maze_loop.maze_arguments(maze)
         model = self._model
+        # (called once per learn() or episode: directly after the first call, for this maze's types)
+        loop = self._loops.setdefault(maze_types(mz), _model.Compiled(run_ps_grid_maze))
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return run_ps_grid_maze(*model.a, row_of, keys, T, TF, self.gamma, self.epsilon, self.n_backups,
-                                           self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes, rec)
+            return loop(model.a, table, self.gamma, self.epsilon, self.n_backups, self._rng, maze.np_random, mz,
+                        pos, int(budget_steps), int(budget_episodes), rec)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            nonlocal row_of, keys, T, TF
+            nonlocal table
             self._draws.sync()  # the loop draws from the generator itself
             row_of = np.full((h, w), -1, dtype=np.int64)
             keys = np.zeros((h * w, 2), dtype=np.int64)
@@ -210,8 +229,8 @@ class PrioritizedSweeping(PerStepAgent):
                 row_of[int(key[1]), int(key[0])] = row
                 keys[row] = int(key[0]), int(key[1])
             T = np.array([self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)],
-                         dtype=np.int64)
-            TF = np.array([self._ep_return])
+                         dtype=np.int64)  # (indexed by fused.T_*)
+            table = PSTable(row_of, keys, T, np.array([self._ep_return]))
             first_new = model.n_states
             steps, rows = _maze_loop.drive(maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps,
                                        max_episodes, max_records)
@@ -220,10 +239,10 @@ class PrioritizedSweeping(PerStepAgent):
                 self._index[key] = row
                 self._keys.append(key)
             self._ep_row, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:4])
-            self._ep_return = float(TF[0])
+            self._ep_return = float(table.TF[0])
             return steps, rows, bool(T[4])
 
-        row_of = keys = T = TF = None
+        table = None
         return run
 
     # -- queries ----------------------------------------------------------------------------

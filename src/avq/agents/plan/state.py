@@ -1,0 +1,93 @@
+"""What ``avq-plan``'s kernels read and write: the record of the agent's arrays, its parameters (declared
+once) and the indices of its state.
+
+The kernels (:mod:`avq.agents.plan.kernels`, :mod:`avq.agents.plan.memory`) take two records: ``ag``, a
+:class:`PlanArrays` (the codebook, the parameters, the state, the remembered transitions), and ``m``,
+the model's :class:`~avq.agents.plan.model.ModelArrays`; both are NamedTuples of arrays, which Numba
+takes as they are.
+
+The state arrays: ``S`` int and ``F`` float state (index names below; ``S[GEOM]`` counts the changes of
+the codebook, so that a caller may keep the cells of observations it sees again). ``F`` holds the
+current transition's return and discount, the episode's return, and the sums that estimate the value's
+slope (return per unit of scaled distance travelled, and how many); then ``n + 1`` entries of scratch
+(``F`` has ``N_F + n + 1`` entries).
+"""
+
+from __future__ import annotations
+
+from enum import auto
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from avq._numba import borrowed
+from avq.agents._params import ParamIndex
+
+__all__ = ["PlanArrays", "PlanParam", "PlanIntParam", "borrowed_plan"]
+
+
+class PlanParam(ParamIndex):
+    """``P``: the float parameters, each named after the agent parameter it holds."""
+
+    GAMMA = auto()
+    EPSILON = auto()
+    D_MIN = auto()  # growth: no vector within d_min of another
+    SPLIT_THRESHOLD = auto()  # outcome_split's excess
+    VALUE_SLOPE = auto()  # outcome_split's slope; -1: estimated (value_slope=None)
+
+
+class PlanIntParam(ParamIndex):
+    """``IP``: the int parameters (switches as 0 or 1), each named after the agent parameter it holds."""
+
+    MAX_CELLS = auto()
+    N_BACKUPS = auto()  # the planner's budget per transition
+    COLLISION_GROWTH = auto()
+    OUTCOME_SPLIT = auto()
+    MEMORY = auto()  # remembered transitions
+    CYCLE_SPLIT = auto()
+    SPLIT_AFTER = auto()  # 0: off (split_after=None)
+
+
+# S: int state
+SIZE, CELL, ACTION, EP_STEPS, APPENDS, REFUSED, DECISIONS, IN_EPISODE, MEM_N, MEM_POS, SPLITS, GEOM = range(12)
+PREV_CELL, PREV_KNOWN = 12, 13  # the cell of the decision before the current one (-1 at an episode's start),
+# and whether that decision was of a known pair
+DEC_STEPS = 14  # the primitive steps taken so far with the current decision
+DEC_REFUSED = 15  # whether split_after's growth was refused during the current decision (counted once)
+N_S = 16
+# F: float state
+RET, DISC, EP_RETURN, SLOPE_SUM, SLOPE_N = range(5)
+N_F = 5
+
+
+class PlanArrays(NamedTuple):
+    """``avq-plan``'s own arrays, as its kernels take them (one argument, ``ag``)."""
+
+    #: ``(cap, n)`` the codebook (its first ``S[SIZE]`` rows), in observation units.
+    V: np.ndarray
+    #: ``(n,)`` one over the metric's scale.
+    inv_scale: np.ndarray
+    #: Float parameters (:class:`PlanParam`) and int parameters (:class:`PlanIntParam`).
+    P: np.ndarray
+    IP: np.ndarray
+    #: Int and float state (the indices above).
+    S: np.ndarray
+    F: np.ndarray
+    #: ``(n,)`` the observation that started the current transition.
+    xs: np.ndarray
+    #: The memory: ``(M, 2n)`` start and end observations, ``(M, 3)`` action, start cell, end cell (-1:
+    #: terminal), ``(M, 2)`` return and discount.
+    mem_x: np.ndarray
+    mem_i: np.ndarray
+    mem_f: np.ndarray
+    #: ``(edges, n)`` the sum of the starts of each edge's transitions (the edges of the model).
+    e_xs: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def borrowed_plan(ag: PlanArrays) -> PlanArrays:
+    """``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for a fused loop's own use."""
+    return PlanArrays(borrowed(ag.V), borrowed(ag.inv_scale), borrowed(ag.P), borrowed(ag.IP), borrowed(ag.S),
+                      borrowed(ag.F), borrowed(ag.xs), borrowed(ag.mem_x), borrowed(ag.mem_i), borrowed(ag.mem_f),
+                      borrowed(ag.e_xs))
