@@ -8,8 +8,7 @@ import pytest
 
 import avq
 from avq import AVQSarsa, make_agent
-from avq.agents.avq_sarsa import episode_end
-from avq.agents.avq_sarsa import kernels as core
+from avq.agents.avq_sarsa import episode_end, kernels as core
 
 INF = np.inf
 #: The bounds the README once gave CartPole-v1 for ``avq``.

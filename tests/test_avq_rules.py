@@ -10,8 +10,7 @@ import pytest
 from avq import AVQSarsa
 from avq._random import RawStream
 from avq.agents._td import decide, sarsa_lambda, sarsa_td_error, trace_update
-from avq.agents.avq_sarsa import episode_end
-from avq.agents.avq_sarsa import kernels as core
+from avq.agents.avq_sarsa import episode_end, kernels as core
 from avq.rules import APPEND, CHI, KEEP, collision_rule, merge_profiles, similar_profiles
 
 from conftest import ScriptedEnv
@@ -429,8 +428,7 @@ def test_collision_split_leaves_the_vector_itself_to_the_paper_rule():
 
 
 def test_merge_pairs_mutual_ties_pairs_a_tied_nearest_by_lowest_index():
-    from avq.agents.avq_sarsa import episode_end
-    from avq.agents.avq_sarsa import kernels as core
+    from avq.agents.avq_sarsa import episode_end, kernels as core
     from avq.quantizer import mutual_nearest_pairs_kernel
 
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
@@ -597,8 +595,7 @@ def test_explore_bonus_decides_on_values_plus_bonus_per_decision_count():
 
 @pytest.mark.parametrize("make_room, refused", [(False, 2), (True, 0), (True, 1), (True, 2)])
 def test_make_room_merges_as_many_more_same_action_pairs_as_growth_was_refused(make_room, refused):
-    from avq.agents.avq_sarsa import episode_end
-    from avq.agents.avq_sarsa import kernels as core
+    from avq.agents.avq_sarsa import episode_end, kernels as core
 
     # Three nearest pairs, far apart: (0, 1), (2, 3), (4, 5), none similar enough for rho = 1.
     # Same greedy action in (0, 1) (difference 9) and (2, 3) (difference 4); not in (4, 5).

@@ -203,7 +203,8 @@ def remember(agent, xs, a, x, R, disc=1.0):
     """Store a transition from xs to x (cells by the current codebook) in the memory and the model."""
     ag = agent._ag
     size = int(ag.S[SIZE])
-    cell = lambda p: int(np.argmin(((ag.V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
+    def cell(p):
+        return int(np.argmin(((ag.V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
     i, j = cell(xs), cell(x)
     t = int(ag.S[MEM_POS])
     ag.xs[:] = xs  # (the current transition's start)
@@ -302,7 +303,8 @@ def test_split_cell_refuses_mean_starts_within_d_min_of_each_other():
 
 
 def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
-    env = lambda: gym.make("avq/GridMaze-v0")
+    def env():
+        return gym.make("avq/GridMaze-v0")
     agent = avq.make_agent("avq-plan", env(), seed=0)
     for _ in range(20):
         agent.learn(total_episodes=10)

@@ -22,8 +22,7 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from avq import AVQSarsa
-from avq.agents.avq_sarsa import episode_end
-from avq.agents.avq_sarsa import kernels as core
+from avq.agents.avq_sarsa import episode_end, kernels as core
 from avq.quantizer import _TREE_THRESHOLD, Codebook, compact_rows, merge_kernel, mutual_nearest_pairs_kernel
 from avq.rules import mean_square_difference, merge_profiles
 
