@@ -55,12 +55,18 @@ def run_one(task: str, config: str, seed: int, episodes: int) -> dict:
     returns = np.asarray(hist["return"], float)
     ev = evaluate_policy(model, gym.make(task), n_episodes=10, seed=10_000 + seed)
     return {
-        "task": task, "config": config, "seed": seed, "episodes": episodes,
-        "final_return": round(float(returns[-max(1, episodes // 10):].mean()), 2),
-        "greedy_return": round(ev["mean_return"], 2), "n_actions": int(model.n_actions_),
+        "task": task,
+        "config": config,
+        "seed": seed,
+        "episodes": episodes,
+        "final_return": round(float(returns[-max(1, episodes // 10) :].mean()), 2),
+        "greedy_return": round(ev["mean_return"], 2),
+        "n_actions": int(model.n_actions_),
         "actions": " ".join(f"{v:.4g}" for v in np.sort(model.actions_.ravel())),
-        "env_steps": int(model.num_timesteps), "wall_s": round(wall, 2),
-        "curve": returns, "n_actions_curve": np.asarray(hist["n_cells"], float),
+        "env_steps": int(model.num_timesteps),
+        "wall_s": round(wall, 2),
+        "curve": returns,
+        "n_actions_curve": np.asarray(hist["n_cells"], float),
     }
 
 
@@ -80,8 +86,9 @@ def plot(rows: list[dict], tasks: list[str], configs: list[str], seeds: int, pat
 
     from avq.plotting import mean_ci95, running_mean
 
-    fig, axes = plt.subplots(2, len(tasks), figsize=(6 * len(tasks), 7.5), squeeze=False,
-                             gridspec_kw={"height_ratios": [2, 1]})
+    fig, axes = plt.subplots(
+        2, len(tasks), figsize=(6 * len(tasks), 7.5), squeeze=False, gridspec_kw={"height_ratios": [2, 1]}
+    )
     for col, task in enumerate(tasks):
         top, bottom = axes[0, col], axes[1, col]
         for config in configs:
@@ -130,8 +137,10 @@ def main() -> None:
             w.writerow({k: r[k] for k in cols})
     plot(rows, tasks, configs, args.seeds, out / "figures" / "action_codebook.png")
 
-    header = ("| task | actions | final return (last 10%) | greedy return (10 episodes) | actions at the end "
-              "| env steps | s / run |")
+    header = (
+        "| task | actions | final return (last 10%) | greedy return (10 episodes) | actions at the end "
+        "| env steps | s / run |"
+    )
     lines = [header, "|---|---|---|---|---|---|---|"]
     for t in tasks:
         for c in configs:
@@ -140,10 +149,13 @@ def main() -> None:
             lines.append(
                 f"| {t} | {c} | {interval([r['final_return'] for r in rs])} | "
                 f"{interval([r['greedy_return'] for r in rs])} | {np.median(n):.0f} [{n.min()}–{n.max()}] | "
-                f"{np.mean([r['env_steps'] for r in rs]):.0f} | {np.mean([r['wall_s'] for r in rs]):.1f} |")
+                f"{np.mean([r['env_steps'] for r in rs]):.0f} | {np.mean([r['wall_s'] for r in rs]):.1f} |"
+            )
     lines.append("")
-    lines.append(f"{args.seeds} seeds per row (± is the half-width of the 95% t-interval over seeds); "
-                 f"total wall time {total:.0f} s with {args.jobs} processes.")
+    lines.append(
+        f"{args.seeds} seeds per row (± is the half-width of the 95% t-interval over seeds); "
+        f"total wall time {total:.0f} s with {args.jobs} processes."
+    )
     print("\n".join(lines))
 
 

@@ -69,8 +69,14 @@ TASKS = {
 #: task -> the return that the mean of the last 20 training episodes must reach: the usual "solved"
 #: levels of the classic tasks (Gym's reward_threshold for MountainCar and Acrobot; 195 is CartPole-v0's)
 #: and, on RobotMaze, reaching the goal with at most about 100 moves' worth of penalties.
-THRESHOLDS = {"MountainCar-v0": -150.0, "CartPole-v1": 195.0, "CartPole-v0": 195.0, "Acrobot-v1": -100.0,
-              "Pendulum-v1": -200.0, "avq/RobotMaze-v0": -100.0}
+THRESHOLDS = {
+    "MountainCar-v0": -150.0,
+    "CartPole-v1": 195.0,
+    "CartPole-v0": 195.0,
+    "Acrobot-v1": -100.0,
+    "Pendulum-v1": -200.0,
+    "avq/RobotMaze-v0": -100.0,
+}
 #: task -> torques: Pendulum's Box action space made Discrete by Gymnasium's DiscretizeAction wrapper (that many
 #: evenly spaced torques from -2 to 2), so that the agents for Discrete actions can run it.
 ACTION_BINS = {"Pendulum-v1": 5}
@@ -108,16 +114,28 @@ def steps_to_threshold(returns: np.ndarray, steps: np.ndarray, threshold: float)
 def summarize(task: str, agent: str, seed: int, episodes: int, returns, steps, cells, wall: float, ev: dict) -> dict:
     """One row of the CSV: the run's figures (``cells`` per episode, or None for the random policy)."""
     returns, steps = np.asarray(returns, float), np.asarray(steps, np.int64)
-    tail = returns[-max(1, episodes // 10):]
+    tail = returns[-max(1, episodes // 10) :]
     row = {
-        "task": task, "agent": agent, "seed": seed, "episodes": episodes,
-        "final_return": round(float(tail.mean()), 2), "greedy_return": round(ev["mean_return"], 2),
-        "greedy_success": ev["success_rate"], "cells": None if cells is None else int(cells[-1]),
+        "task": task,
+        "agent": agent,
+        "seed": seed,
+        "episodes": episodes,
+        "final_return": round(float(tail.mean()), 2),
+        "greedy_return": round(ev["mean_return"], 2),
+        "greedy_success": ev["success_rate"],
+        "cells": None if cells is None else int(cells[-1]),
     }
     for f in FRACTIONS:
         row[f"cells_{round(f * 100)}"] = None if cells is None else int(cells[max(1, int(round(f * episodes))) - 1])
-    row.update({"threshold": THRESHOLDS[task], "steps_to_threshold": steps_to_threshold(returns, steps, THRESHOLDS[task]),
-                "env_steps": int(steps.sum()), "wall_s": round(wall, 2), "curve": returns.tolist()})
+    row.update(
+        {
+            "threshold": THRESHOLDS[task],
+            "steps_to_threshold": steps_to_threshold(returns, steps, THRESHOLDS[task]),
+            "env_steps": int(steps.sum()),
+            "wall_s": round(wall, 2),
+            "curve": returns.tolist(),
+        }
+    )
     return row
 
 
@@ -191,9 +209,11 @@ def run_on(rows: list[dict], task: str, agents: list[str]) -> list[str]:
 def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
     """The Markdown tables of the rows: each task with the agents run there (:func:`run_on`)."""
     run = lambda t: run_on(rows, t, agents)  # noqa: E731
-    lines = ["| task | agent | final return (last 10%) | greedy return | greedy success | cells / features | "
-             "env steps to threshold, runs there | env steps | s / run |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| task | agent | final return (last 10%) | greedy return | greedy success | cells / features | "
+        "env steps to threshold, runs there | env steps | s / run |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for t in tasks:
         for a in run(t):
             rs = [r for r in rows if r["task"] == t and r["agent"] == a]
@@ -203,22 +223,34 @@ def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
             lines.append(
                 f"| {t} | {a} | {spread([r['final_return'] for r in rs])} | {spread([r['greedy_return'] for r in rs])} | "
                 f"{succ_txt} | {cells} | {threshold_cell(rs)} | {np.median([r['env_steps'] for r in rs]):.0f} | "
-                f"{np.median([r['wall_s'] for r in rs]):.1f} |")
-    lines += ["", "Cells over time (median [min–max] over seeds) after a fraction of the training episodes:", "",
-              "| task | agent | " + " | ".join(f"{f:.0%}" for f in FRACTIONS) + " |",
-              "|---|---|" + "---|" * len(FRACTIONS)]
+                f"{np.median([r['wall_s'] for r in rs]):.1f} |"
+            )
+    lines += [
+        "",
+        "Cells over time (median [min–max] over seeds) after a fraction of the training episodes:",
+        "",
+        "| task | agent | " + " | ".join(f"{f:.0%}" for f in FRACTIONS) + " |",
+        "|---|---|" + "---|" * len(FRACTIONS),
+    ]
     for t in tasks:
         for a in run(t):
             rs = [r for r in rows if r["task"] == t and r["agent"] == a]
             if rs[0]["cells"] is not None:
                 cols = [spread([r[f"cells_{round(f * 100)}"] for r in rs], "{:.0f}") for f in FRACTIONS]
                 lines.append(f"| {t} | {a} | " + " | ".join(cols) + " |")
-    lines += ["", f"Mean return of episodes {EARLY - WINDOW + 1}–{EARLY} (or the last {WINDOW} before), median "
-              "[min–max] over seeds; the seeds above the random policy's best seed:", "",
-              "| task | agent | return | seeds above random |", "|---|---|---|---|"]
+    lines += [
+        "",
+        f"Mean return of episodes {EARLY - WINDOW + 1}–{EARLY} (or the last {WINDOW} before), median "
+        "[min–max] over seeds; the seeds above the random policy's best seed:",
+        "",
+        "| task | agent | return | seeds above random |",
+        "|---|---|---|---|",
+    ]
     for t in tasks:
-        early = {a: [float(np.mean(r["curve"][:EARLY][-WINDOW:])) for r in rows if r["task"] == t and r["agent"] == a]
-                 for a in run(t)}
+        early = {
+            a: [float(np.mean(r["curve"][:EARLY][-WINDOW:])) for r in rows if r["task"] == t and r["agent"] == a]
+            for a in run(t)
+        }
         best_random = max(early[RANDOM])
         for a in run(t):
             above = "-" if a == RANDOM else f"{sum(v > best_random for v in early[a])}/{len(early[a])}"
@@ -229,8 +261,10 @@ def tables(rows: list[dict], tasks: list[str], agents: list[str]) -> list[str]:
 def previous_rows(out: Path) -> list[dict]:
     """The rows of an earlier run in ``out`` (``data/compare.csv`` with the curves of ``data/compare_curves.json``),
     their numbers as :func:`summarize` gives them."""
-    curves = {(c["task"], c["agent"], int(c["seed"])): c["curve"]
-              for c in json.loads((out / "data" / "compare_curves.json").read_text())}
+    curves = {
+        (c["task"], c["agent"], int(c["seed"])): c["curve"]
+        for c in json.loads((out / "data" / "compare_curves.json").read_text())
+    }
     rows = []
     with open(out / "data" / "compare.csv", newline="") as f:
         for r in csv.DictReader(f):
@@ -249,15 +283,26 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs")
     ap.add_argument("--tasks", default=",".join(TASKS))
-    ap.add_argument("--agents", default=",".join(AGENTS), help=f"agent names, and {RANDOM!r} (added if left out; with --update, "
-                                                          "on the tasks that have no rows of it)")
-    ap.add_argument("--update", action="store_true",
-                    help="keep the rows of OUT/data/compare.csv for the tasks and agents not run now, and write the "
-                         "tables and figures of them all (the same seeds)")
-    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="for trials: a parameter given to every agent run on top of the task's settings, read as "
-                         "`avq train --set` reads it, e.g. --set 'scale_factor=[3,3,3,3,1,1]' (repeatable; not with "
-                         "--out docs)")
+    ap.add_argument(
+        "--agents",
+        default=",".join(AGENTS),
+        help=f"agent names, and {RANDOM!r} (added if left out; with --update, on the tasks that have no rows of it)",
+    )
+    ap.add_argument(
+        "--update",
+        action="store_true",
+        help="keep the rows of OUT/data/compare.csv for the tasks and agents not run now, and write the "
+        "tables and figures of them all (the same seeds)",
+    )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="for trials: a parameter given to every agent run on top of the task's settings, read as "
+        "`avq train --set` reads it, e.g. --set 'scale_factor=[3,3,3,3,1,1]' (repeatable; not with "
+        "--out docs)",
+    )
     args = ap.parse_args()
     from avq.cli import UsageError, key_values
 
@@ -275,9 +320,13 @@ def main() -> None:
     previous = previous_rows(out) if args.update else []
     # The random policy runs on every task, unless asked for or (--update) its rows for the task are kept.
     has_random = {r["task"] for r in previous if r["agent"] == RANDOM}
-    jobs = [(t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale)), params) for t in tasks
-            for a in agents + ([RANDOM] if RANDOM not in agents and t not in has_random else [])
-            if a not in SAME_AS.get(t, {}) for s in range(args.first_seed, args.first_seed + args.seeds)]
+    jobs = [
+        (t, a, s, max(WINDOW, int(TASKS[t][1] * args.scale)), params)
+        for t in tasks
+        for a in agents + ([RANDOM] if RANDOM not in agents and t not in has_random else [])
+        if a not in SAME_AS.get(t, {})
+        for s in range(args.first_seed, args.first_seed + args.seeds)
+    ]
     t0 = time.perf_counter()
     rows = Parallel(n_jobs=args.jobs, verbose=5)(delayed(run_one)(*j) for j in jobs)
     if args.update:
@@ -287,9 +336,13 @@ def main() -> None:
         agents = list(dict.fromkeys([a for a in (*AGENTS, RANDOM) if any(r["agent"] == a for r in rows)]))
     else:
         agents = list(dict.fromkeys([*agents, *(a for _, a, *_ in jobs)]))
-    mc = Parallel(n_jobs=args.jobs)(delayed(mountain_car_check)(s)
-                                    for s in range(args.first_seed, args.first_seed + args.seeds)) \
-        if "MountainCar-v0" in tasks else []
+    mc = (
+        Parallel(n_jobs=args.jobs)(
+            delayed(mountain_car_check)(s) for s in range(args.first_seed, args.first_seed + args.seeds)
+        )
+        if "MountainCar-v0" in tasks
+        else []
+    )
     total = time.perf_counter() - t0
 
     with open(out / "data" / "compare.csv", "w", newline="") as f:
@@ -299,23 +352,34 @@ def main() -> None:
         for r in rows:
             w.writerow({k: r[k] for k in cols})
     (out / "data" / "compare_curves.json").write_text(
-        json.dumps([{k: r[k] for k in ("task", "agent", "seed", "curve")} for r in rows]))
+        json.dumps([{k: r[k] for k in ("task", "agent", "seed", "curve")} for r in rows])
+    )
 
     from avq.plotting import plot_learning_curves
 
     for t in tasks:
-        curves = {a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a]
-                  for a in run_on(rows, t, agents)}
-        plot_learning_curves(curves, out / "figures" / f"compare_{t.replace('/', '-')}.png", ylabel="return",
-                             xlabel="episode", window=WINDOW,
-                             title=f"{t}: return per episode, {args.seeds} seeds (threshold {THRESHOLDS[t]:g})")
+        curves = {
+            a: [np.array(r["curve"]) for r in rows if r["task"] == t and r["agent"] == a]
+            for a in run_on(rows, t, agents)
+        }
+        plot_learning_curves(
+            curves,
+            out / "figures" / f"compare_{t.replace('/', '-')}.png",
+            ylabel="return",
+            xlabel="episode",
+            window=WINDOW,
+            title=f"{t}: return per episode, {args.seeds} seeds (threshold {THRESHOLDS[t]:g})",
+        )
     lines = tables(rows, tasks, agents)
     lines.append("")
-    lines.append("Thresholds (mean return of the last 20 episodes): "
-                 + ", ".join(f"{t} {THRESHOLDS[t]:g}" for t in tasks) + ".")
+    lines.append(
+        "Thresholds (mean return of the last 20 episodes): " + ", ".join(f"{t} {THRESHOLDS[t]:g}" for t in tasks) + "."
+    )
     if mc:
-        lines.append(f"Mountain Car check (tiles, 8 tilings, uncapped, first 50 episodes): mean steps per episode "
-                     f"{np.mean(mc):.0f} (seeds: {', '.join(f'{v:.0f}' for v in mc)}); Sutton & Barto report about 180-300.")
+        lines.append(
+            f"Mountain Car check (tiles, 8 tilings, uncapped, first 50 episodes): mean steps per episode "
+            f"{np.mean(mc):.0f} (seeds: {', '.join(f'{v:.0f}' for v in mc)}); Sutton & Barto report about 180-300."
+        )
     lines.append(f"Total wall time {total:.0f} s with {args.jobs} processes.")
     table = "\n".join(lines)
     (out / "data" / "compare_table.md").write_text(table + "\n")

@@ -42,22 +42,54 @@ from avq.envs import parse_layout, random_layout, refine_layout
 
 #: Agents per family, with the overrides they get here.
 UNCAPPED = {"max_cells": 1_000_000}
-MAZE_AGENTS = {"avq-plan": UNCAPPED, "tabular-ps": {}, "avq": UNCAPPED, "avq-maze": UNCAPPED, "avq-paper": {},
-               "tabular": {}, "tiles": {}}
+MAZE_AGENTS = {
+    "avq-plan": UNCAPPED,
+    "tabular-ps": {},
+    "avq": UNCAPPED,
+    "avq-maze": UNCAPPED,
+    "avq-paper": {},
+    "tabular": {},
+    "tiles": {},
+}
 ROBOT_AGENTS = {"avq-plan": UNCAPPED, "grid-ps": {}, "avq": UNCAPPED, "grid": {}, "tiles": {}}
 FAMILIES = {
-    "generated": dict(sizes=(12, 22, 42, 62, 92), quick=(12, 22), seeds=5, budget=3_000_000, agents=MAZE_AGENTS,
-                      size="side", csv="docs/data/scaling.csv", figure="docs/figures/scaling.png"),
-    "resolution": dict(sizes=(1, 2, 4, 8), quick=(1, 2), seeds=5, budget=3_000_000, agents=MAZE_AGENTS, size="k",
-                       csv="docs/data/scaling_resolution.csv", figure="docs/figures/scaling_resolution.png"),
-    "robot": dict(sizes=(0.5, 0.25, 0.125), quick=(0.5,), seeds=3, budget=1_000_000, agents=ROBOT_AGENTS,
-                  size="move", csv="docs/data/scaling_robot.csv", figure="docs/figures/scaling_robot.png"),
+    "generated": dict(
+        sizes=(12, 22, 42, 62, 92),
+        quick=(12, 22),
+        seeds=5,
+        budget=3_000_000,
+        agents=MAZE_AGENTS,
+        size="side",
+        csv="docs/data/scaling.csv",
+        figure="docs/figures/scaling.png",
+    ),
+    "resolution": dict(
+        sizes=(1, 2, 4, 8),
+        quick=(1, 2),
+        seeds=5,
+        budget=3_000_000,
+        agents=MAZE_AGENTS,
+        size="k",
+        csv="docs/data/scaling_resolution.csv",
+        figure="docs/figures/scaling_resolution.png",
+    ),
+    "robot": dict(
+        sizes=(0.5, 0.25, 0.125),
+        quick=(0.5,),
+        seeds=3,
+        budget=1_000_000,
+        agents=ROBOT_AGENTS,
+        size="move",
+        csv="docs/data/scaling_robot.csv",
+        figure="docs/figures/scaling_robot.png",
+    ),
 }
 FIELDS = ("agent", "size", "states", "slip", "seed", "reached", "env_steps", "cells", "success", "backups", "wall_s")
 
 
-def learn_until(agent, eval_env, budget: int, target: float, chunk: int = 1, max_chunk: int = 200,
-                max_steps: int | None = None) -> tuple[bool, float, float]:
+def learn_until(
+    agent, eval_env, budget: int, target: float, chunk: int = 1, max_chunk: int = 200, max_steps: int | None = None
+) -> tuple[bool, float, float]:
     """Learn in chunks of episodes (doubling up to ``max_chunk``) until the greedy policy succeeds from
     ``target`` of the starts or ``budget`` env steps are spent: ``(reached, success, wall seconds)``."""
     t0 = time.perf_counter()
@@ -76,8 +108,11 @@ def maze_factory(family: str, size: float, slip: float):
     if family == "robot":
         make = lambda: gym.make("avq/RobotMaze-v0", move=size)  # noqa: E731
         return make, round(98 / size**2), None
-    rows = random_layout(int(size), int(size), 0.2, seed=1000 + int(size)) if family == "generated" \
+    rows = (
+        random_layout(int(size), int(size), 0.2, seed=1000 + int(size))
+        if family == "generated"
         else refine_layout("lau2002", int(size))
+    )
     limit = 4 * (len(rows) + len(rows[0]))
     make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit, slip=slip)  # noqa: E731
     return make, parse_layout(rows).n_states, limit
@@ -94,9 +129,19 @@ def steps_to_success(family: str, name: str, size: float, seed: int, budget: int
     if slip:
         eval_env.reset(seed=10_000 + seed)  # the walks slip too: seeded, for repeatable figures
     reached, success, wall = learn_until(agent, eval_env, budget, 0.95, max_steps=limit)
-    return {"agent": name, "size": size, "states": states, "slip": slip, "seed": seed, "reached": reached,
-            "env_steps": int(agent.num_timesteps), "cells": int(agent.n_cells), "success": float(success),
-            "backups": int(getattr(agent, "backups_", 0)), "wall_s": wall}
+    return {
+        "agent": name,
+        "size": size,
+        "states": states,
+        "slip": slip,
+        "seed": seed,
+        "reached": reached,
+        "env_steps": int(agent.num_timesteps),
+        "cells": int(agent.n_cells),
+        "success": float(success),
+        "backups": int(getattr(agent, "backups_", 0)),
+        "wall_s": wall,
+    }
 
 
 def _read(path: str) -> list[dict]:
@@ -107,9 +152,18 @@ def _read(path: str) -> list[dict]:
     if not rows or "size" not in rows[0]:
         return []  # (a file of an older layout: rerun everything)
     for r in rows:
-        r.update(size=float(r["size"]), states=int(r["states"]), slip=float(r["slip"]), seed=int(r["seed"]),
-                 reached=r["reached"] == "True", env_steps=int(r["env_steps"]), cells=int(r["cells"]),
-                 success=float(r["success"]), backups=int(r["backups"]), wall_s=float(r["wall_s"]))
+        r.update(
+            size=float(r["size"]),
+            states=int(r["states"]),
+            slip=float(r["slip"]),
+            seed=int(r["seed"]),
+            reached=r["reached"] == "True",
+            env_steps=int(r["env_steps"]),
+            cells=int(r["cells"]),
+            success=float(r["success"]),
+            backups=int(r["backups"]),
+            wall_s=float(r["wall_s"]),
+        )
     return rows
 
 
@@ -121,8 +175,14 @@ def summarize(rows: list[dict], agents: list[str], sizes: tuple) -> dict:
             rs = [r for r in rows if r["size"] == size and r["agent"] == name]
             if rs:
                 steps = [r["env_steps"] for r in rs]
-                out[(name, size)] = (rs[0]["states"], float(np.median(steps)), sum(r["reached"] for r in rs), len(rs),
-                                     float(np.median([r["cells"] for r in rs])), (min(steps), max(steps)))
+                out[(name, size)] = (
+                    rs[0]["states"],
+                    float(np.median(steps)),
+                    sum(r["reached"] for r in rs),
+                    len(rs),
+                    float(np.median([r["cells"] for r in rs])),
+                    (min(steps), max(steps)),
+                )
     return out
 
 
@@ -155,12 +215,18 @@ def main() -> None:
     csv_path = fam["csv"].replace(".csv", suffix + ".csv")
     figure = fam["figure"].replace(".png", suffix + ".png")
     jobs = [(name, size, seed) for size in sizes for name in names for seed in range(seeds)]
-    print(f"{len(jobs)} runs ({family}{', slip ' + str(args.slip) if args.slip else ''}) on {os.cpu_count()} cores: "
-          f"{fam['size']} {sizes}, {seeds} seeds, budget {budget:,} steps")
-    new = Parallel(n_jobs=args.jobs)(delayed(steps_to_success)(family, n, s, sd, budget, args.slip)
-                                     for n, s, sd in jobs)
-    kept = [r for r in _read(csv_path) if r["agent"] not in names and r["agent"] in fam["agents"]
-            and r["size"] in sizes and r["seed"] < seeds]
+    print(
+        f"{len(jobs)} runs ({family}{', slip ' + str(args.slip) if args.slip else ''}) on {os.cpu_count()} cores: "
+        f"{fam['size']} {sizes}, {seeds} seeds, budget {budget:,} steps"
+    )
+    new = Parallel(n_jobs=args.jobs)(
+        delayed(steps_to_success)(family, n, s, sd, budget, args.slip) for n, s, sd in jobs
+    )
+    kept = [
+        r
+        for r in _read(csv_path)
+        if r["agent"] not in names and r["agent"] in fam["agents"] and r["size"] in sizes and r["seed"] < seeds
+    ]
     rows = kept + new
     # The agents with runs at every size (kept rows from a run over other sizes are left out).
     present = [n for n in fam["agents"] if all(any(r["agent"] == n and r["size"] == s for r in rows) for s in sizes)]
@@ -171,14 +237,18 @@ def main() -> None:
         writer.writeheader()
         writer.writerows(rows)
     summary = summarize(rows, present, sizes)
-    print(f"\n{fam['size']:>6} {'states':>7} {'agent':<11} {'steps to 95%: median [range]':>34} {'reached':>8} "
-          f"{'cells':>7}")
+    print(
+        f"\n{fam['size']:>6} {'states':>7} {'agent':<11} {'steps to 95%: median [range]':>34} {'reached':>8} "
+        f"{'cells':>7}"
+    )
     for size in sizes:
         for name in present:
             states, steps, got, n, cells, (lo, hi) = summary[(name, size)]
             mark = "" if got == n else ">"
-            print(f"{size:>6g} {states:>7} {name:<11} {mark + format(int(steps), ','):>14} "
-                  f"[{lo:,}-{hi:,}]{'':>3} {got:>5}/{n} {int(cells):>7}")
+            print(
+                f"{size:>6g} {states:>7} {name:<11} {mark + format(int(steps), ','):>14} "
+                f"[{lo:,}-{hi:,}]{'':>3} {got:>5}/{n} {int(cells):>7}"
+            )
     import matplotlib
 
     matplotlib.use("Agg")
@@ -198,10 +268,16 @@ def main() -> None:
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    title = {"generated": "Generated mazes (wall density 0.2)", "resolution": "lau2002 refined k x k",
-             "robot": "RobotMaze lau2002, finer moves"}[family]
-    fig.suptitle(f"{title}{', slip ' + format(args.slip, 'g') if args.slip else ''}, {seeds} seeds; "
-                 f"runs that never reach 95% plot their budget ({budget:,})", fontsize=10)
+    title = {
+        "generated": "Generated mazes (wall density 0.2)",
+        "resolution": "lau2002 refined k x k",
+        "robot": "RobotMaze lau2002, finer moves",
+    }[family]
+    fig.suptitle(
+        f"{title}{', slip ' + format(args.slip, 'g') if args.slip else ''}, {seeds} seeds; "
+        f"runs that never reach 95% plot their budget ({budget:,})",
+        fontsize=10,
+    )
     fig.tight_layout()
     Path(figure).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(figure, dpi=130)

@@ -53,9 +53,27 @@ MB = 1024.0 * 1024.0
 PAGE = os.sysconf("SC_PAGE_SIZE")
 
 COLUMNS = (
-    "steps", "episodes", "wall_s", "chunk_steps_per_s", "rss_mb", "peak_rss_mb", "rss_anon_mb", "history_mb",
-    "history_alloc_mb", "agent_arrays_mb", "n_cells", "max_cells", "q_min", "q_max", "finite",
-    "appends", "merges", "refused", "chunk_episodes", "chunk_mean_return", "chunk_success",
+    "steps",
+    "episodes",
+    "wall_s",
+    "chunk_steps_per_s",
+    "rss_mb",
+    "peak_rss_mb",
+    "rss_anon_mb",
+    "history_mb",
+    "history_alloc_mb",
+    "agent_arrays_mb",
+    "n_cells",
+    "max_cells",
+    "q_min",
+    "q_max",
+    "finite",
+    "appends",
+    "merges",
+    "refused",
+    "chunk_episodes",
+    "chunk_mean_return",
+    "chunk_success",
 )
 
 
@@ -132,26 +150,29 @@ def soak(steps: int, every: int, seed: int) -> tuple[list[dict], dict]:
         q = agent.q_
         finite = bool(np.isfinite(q).all())
         hist, hist_alloc = history_bytes(agent)
-        rows.append({
-            "steps": agent.num_timesteps,
-            "episodes": agent.num_episodes,
-            "wall_s": time.perf_counter() - t_start,
-            "chunk_steps_per_s": chunk / dt if dt > 0 else float("inf"),
-            "rss_mb": rss_bytes() / MB,
-            "peak_rss_mb": peak_rss_bytes() / MB,
-            "rss_anon_mb": (proc_status_bytes("RssAnon") or 0) / MB,
-            "history_mb": hist / MB,
-            "history_alloc_mb": hist_alloc / MB,
-            "agent_arrays_mb": agent_array_bytes(agent) / MB,
-            "n_cells": agent.n_cells,
-            "max_cells": agent.max_cells,
-            "q_min": float(np.nanmin(q)) if q.size and not np.isnan(q).all() else float("nan"),
-            "q_max": float(np.nanmax(q)) if q.size and not np.isnan(q).all() else float("nan"),
-            "finite": finite,
-        })
+        rows.append(
+            {
+                "steps": agent.num_timesteps,
+                "episodes": agent.num_episodes,
+                "wall_s": time.perf_counter() - t_start,
+                "chunk_steps_per_s": chunk / dt if dt > 0 else float("inf"),
+                "rss_mb": rss_bytes() / MB,
+                "peak_rss_mb": peak_rss_bytes() / MB,
+                "rss_anon_mb": (proc_status_bytes("RssAnon") or 0) / MB,
+                "history_mb": hist / MB,
+                "history_alloc_mb": hist_alloc / MB,
+                "agent_arrays_mb": agent_array_bytes(agent) / MB,
+                "n_cells": agent.n_cells,
+                "max_cells": agent.max_cells,
+                "q_min": float(np.nanmin(q)) if q.size and not np.isnan(q).all() else float("nan"),
+                "q_max": float(np.nanmax(q)) if q.size and not np.isnan(q).all() else float("nan"),
+                "finite": finite,
+            }
+        )
         if done != agent.num_timesteps:
-            raise RuntimeError(f"learn is not additive: asked for {done} steps in all, the agent counts "
-                               f"{agent.num_timesteps}")
+            raise RuntimeError(
+                f"learn is not additive: asked for {done} steps in all, the agent counts {agent.num_timesteps}"
+            )
     info["total_wall_s"] = time.perf_counter() - t_start
     add_episode_figures(rows, agent.episode_history(), info["max_steps"])
     info["num_episodes"] = agent.num_episodes
@@ -167,8 +188,10 @@ def add_episode_figures(rows: list[dict], hist: dict[str, np.ndarray], max_steps
     last allowed step counts as a failure: the history does not say which it was).
     """
     n = len(hist.get("episode", ()))
-    cum = {k: np.concatenate([[0], np.cumsum(hist[k])]) if n else np.zeros(1, dtype=np.int64)
-           for k in ("appends", "merges", "refused")}
+    cum = {
+        k: np.concatenate([[0], np.cumsum(hist[k])]) if n else np.zeros(1, dtype=np.int64)
+        for k in ("appends", "merges", "refused")
+    }
     prev = 0
     for row in rows:
         e = row["episodes"]
@@ -189,8 +212,12 @@ def write_csv(rows: list[dict], path: Path) -> None:
         w = csv.DictWriter(f, fieldnames=COLUMNS, lineterminator="\n")
         w.writeheader()
         for row in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else int(v) if isinstance(v, bool) else v)
-                        for k, v in row.items()})
+            w.writerow(
+                {
+                    k: (f"{v:.6g}" if isinstance(v, float) else int(v) if isinstance(v, bool) else v)
+                    for k, v in row.items()
+                }
+            )
 
 
 def draw(rows: list[dict], info: dict, seed: int, path: Path) -> None:
@@ -203,18 +230,26 @@ def draw(rows: list[dict], info: dict, seed: int, path: Path) -> None:
     col = {k: np.array([r[k] for r in rows], dtype=float) for k in COLUMNS}
     fig, axes = plt.subplots(4, 1, figsize=(7.5, 9.5), sharex=True)
     ax = axes[0]
-    for key, style, label in (("rss_mb", "-", "RSS"), ("peak_rss_mb", "--", "peak RSS"),
-                              ("rss_anon_mb", "-.", "anonymous RSS"), ("history_mb", ":", "episode history written")):
+    for key, style, label in (
+        ("rss_mb", "-", "RSS"),
+        ("peak_rss_mb", "--", "peak RSS"),
+        ("rss_anon_mb", "-.", "anonymous RSS"),
+        ("history_mb", ":", "episode history written"),
+    ):
         ax.plot(x, col[key] - col[key][0], style, label=label)
     ax.set_ylabel("MB since the\nfirst checkpoint")
-    ax.set_title(f"memory: RSS {col['rss_mb'][0]:.1f} MB at the first checkpoint, {col['rss_mb'][-1]:.1f} MB "
-                 f"at the last (peak {col['peak_rss_mb'][-1]:.1f} MB)", fontsize=9)
+    ax.set_title(
+        f"memory: RSS {col['rss_mb'][0]:.1f} MB at the first checkpoint, {col['rss_mb'][-1]:.1f} MB "
+        f"at the last (peak {col['peak_rss_mb'][-1]:.1f} MB)",
+        fontsize=9,
+    )
     ax.legend(fontsize=8, loc="upper left")
     ax = axes[1]
     ax.plot(x, col["n_cells"], color="C2")
     ax.set_ylabel("cells")
-    ax.set_title(f"codebook size (max_cells = {info['max_cells']}, refused appends: "
-                 f"{int(col['refused'][-1])})", fontsize=9)
+    ax.set_title(
+        f"codebook size (max_cells = {info['max_cells']}, refused appends: {int(col['refused'][-1])})", fontsize=9
+    )
     ax = axes[2]
     ax.plot(x, col["q_max"], color="C1", label="max Q")
     ax.plot(x, col["q_min"], color="C3", label="min Q")
@@ -242,14 +277,18 @@ def pick(rows: list[dict], k: int = 8) -> list[dict]:
 
 
 def print_table(rows: list[dict]) -> None:
-    head = (f"{'steps':>11} {'episodes':>9} {'wall s':>7} {'RSS MB':>7} {'peak MB':>8} {'anon MB':>8} {'hist buf':>8} "
-            f"{'cells':>6} {'Q min':>9} {'Q max':>8} {'finite':>6} {'refused':>7} {'return':>8} {'succ %':>6}")
+    head = (
+        f"{'steps':>11} {'episodes':>9} {'wall s':>7} {'RSS MB':>7} {'peak MB':>8} {'anon MB':>8} {'hist buf':>8} "
+        f"{'cells':>6} {'Q min':>9} {'Q max':>8} {'finite':>6} {'refused':>7} {'return':>8} {'succ %':>6}"
+    )
     print(head)
     for r in rows:
-        print(f"{r['steps']:>11,} {r['episodes']:>9,} {r['wall_s']:>7.2f} {r['rss_mb']:>7.1f} "
-              f"{r['peak_rss_mb']:>8.1f} {r['rss_anon_mb']:>8.1f} {r['history_alloc_mb']:>8.2f} {r['n_cells']:>6} {r['q_min']:>9.2f} "
-              f"{r['q_max']:>8.2f} {str(r['finite']):>6} {r['refused']:>7} {r['chunk_mean_return']:>8.1f} "
-              f"{100 * r['chunk_success']:>6.1f}")
+        print(
+            f"{r['steps']:>11,} {r['episodes']:>9,} {r['wall_s']:>7.2f} {r['rss_mb']:>7.1f} "
+            f"{r['peak_rss_mb']:>8.1f} {r['rss_anon_mb']:>8.1f} {r['history_alloc_mb']:>8.2f} {r['n_cells']:>6} {r['q_min']:>9.2f} "
+            f"{r['q_max']:>8.2f} {str(r['finite']):>6} {r['refused']:>7} {r['chunk_mean_return']:>8.1f} "
+            f"{100 * r['chunk_success']:>6.1f}"
+        )
 
 
 def verdict(rows: list[dict], info: dict) -> list[str]:
@@ -284,12 +323,18 @@ def verdict(rows: list[dict], info: dict) -> list[str]:
     mem_ok = abs(other) <= max(2.0, 0.01 * half["rss_mb"])
     lines.append(
         "verdict: memory "
-        + ("bounded apart from the per-episode history (which grows linearly by design)" if mem_ok
-           else "grows beyond what the history explains: investigate")
-        + "; codebook " + (f"bounded ({max_cells} cells at most, {100 * max_cells / info['max_cells']:.1f}% of "
-                           f"max_cells; {last['n_cells'] - half['n_cells']:+d} over the second half)"
-                           if max_cells < info["max_cells"] and last["refused"] == 0
-                           else "at its max_cells bound (appends refused)")
+        + (
+            "bounded apart from the per-episode history (which grows linearly by design)"
+            if mem_ok
+            else "grows beyond what the history explains: investigate"
+        )
+        + "; codebook "
+        + (
+            f"bounded ({max_cells} cells at most, {100 * max_cells / info['max_cells']:.1f}% of "
+            f"max_cells; {last['n_cells'] - half['n_cells']:+d} over the second half)"
+            if max_cells < info["max_cells"] and last["refused"] == 0
+            else "at its max_cells bound (appends refused)"
+        )
         + ("; values finite" if finite else "; values NOT finite")
     )
     return lines
@@ -311,15 +356,21 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--steps and --every must be >= 1")
 
     print(f"soak: agent {AGENT!r} on {ENV_ID}, seed {args.seed}, {steps:,} steps, checkpoint every {every:,}")
-    print(f"machine: {os.cpu_count()} CPUs, {platform.python_implementation()} {platform.python_version()}, "
-          f"NumPy {np.__version__}, Numba {numba.__version__}, Gymnasium {gym.__version__}, "
-          f"avq {avq.__version__}, {platform.platform()}")
+    print(
+        f"machine: {os.cpu_count()} CPUs, {platform.python_implementation()} {platform.python_version()}, "
+        f"NumPy {np.__version__}, Numba {numba.__version__}, Gymnasium {gym.__version__}, "
+        f"avq {avq.__version__}, {platform.platform()}"
+    )
     rows, info = soak(steps, every, args.seed)
-    print(f"max_cells = {info['max_cells']}, value_trigger = {info['value_trigger']}, "
-          f"episode step limit = {info['max_steps']}; RSS before learning {info['rss_before_mb']:.1f} MB")
-    print(f"run: {info['total_wall_s']:.1f} s for {rows[-1]['steps']:,} steps and {info['num_episodes']:,} "
-          f"episodes ({rows[-1]['steps'] / info['total_wall_s']:,.0f} steps/s including the first call's "
-          f"compilation; {rows[0]['wall_s']:.1f} s to the first checkpoint)")
+    print(
+        f"max_cells = {info['max_cells']}, value_trigger = {info['value_trigger']}, "
+        f"episode step limit = {info['max_steps']}; RSS before learning {info['rss_before_mb']:.1f} MB"
+    )
+    print(
+        f"run: {info['total_wall_s']:.1f} s for {rows[-1]['steps']:,} steps and {info['num_episodes']:,} "
+        f"episodes ({rows[-1]['steps'] / info['total_wall_s']:,.0f} steps/s including the first call's "
+        f"compilation; {rows[0]['wall_s']:.1f} s to the first checkpoint)"
+    )
     print()
     print_table(pick(rows, 10))
     print()

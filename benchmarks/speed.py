@@ -309,30 +309,46 @@ def main() -> None:
         print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
 
     ref_b = reference_backups_per_second()
-    print(f"\n1b. training with planning on GridMaze lau2002, fused, default budget (reference: value iteration "
-          f"sweeps by hand, {ref_b / 1e6:.1f} M backups/s)")
-    print(f"   {'agent':<10} {'M steps/s learning':>19} {'once learned':>13} {'planner M backups/s':>20} "
-          f"{'of reference':>13} {'cells':>6}")
+    print(
+        f"\n1b. training with planning on GridMaze lau2002, fused, default budget (reference: value iteration "
+        f"sweeps by hand, {ref_b / 1e6:.1f} M backups/s)"
+    )
+    print(
+        f"   {'agent':<10} {'M steps/s learning':>19} {'once learned':>13} {'planner M backups/s':>20} "
+        f"{'of reference':>13} {'cells':>6}"
+    )
     for name in ("avq-plan", "tabular-ps"):
         fresh, learned, _, cells = planning_steps_per_second(name, int(2000 * scale) or 100)
         rate = planner_backups_per_second(name)
-        print(f"   {name:<10} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
-              f"{cells:>6}")
+        print(
+            f"   {name:<10} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
+            f"{cells:>6}"
+        )
 
     print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")
     print(f"   {'env':<18} {'agent':<10} {'k steps/s':>10} {'env only':>10} {'ratio':>6} {'agent µs/step':>14}")
     n = int(100_000 * scale)
-    for env_id, name in (("bench/CopyMaze-v0", "avq-paper"), ("bench/CopyMaze-v0", "avq-sarsa"),
-                         ("bench/CopyMaze-v0", "tabular"), ("bench/CopyMaze-v0", "avq-plan"),
-                         ("bench/CopyMaze-v0", "tabular-ps"), ("MountainCar-v0", "avq"), ("MountainCar-v0", "avq-sarsa"),
-                         ("MountainCar-v0", "tiles"), ("MountainCar-v0", "grid"), ("avq/RobotMaze-v0", "avq")):
+    for env_id, name in (
+        ("bench/CopyMaze-v0", "avq-paper"),
+        ("bench/CopyMaze-v0", "avq-sarsa"),
+        ("bench/CopyMaze-v0", "tabular"),
+        ("bench/CopyMaze-v0", "avq-plan"),
+        ("bench/CopyMaze-v0", "tabular-ps"),
+        ("MountainCar-v0", "avq"),
+        ("MountainCar-v0", "avq-sarsa"),
+        ("MountainCar-v0", "tiles"),
+        ("MountainCar-v0", "grid"),
+        ("avq/RobotMaze-v0", "avq"),
+    ):
         sps, base = paired_generic(name, env_id, n, reps=3 if args.quick else 5)
         work = (1 / sps - 1 / base) * 1e6
         print(f"   {env_id:<18} {name:<10} {sps / 1e3:>10.1f} {base / 1e3:>10.1f} {sps / base:>6.0%} {work:>14.2f}")
 
     shared, by_hand = decisions_per_second(int(2_000_000 * scale))
-    print(f"\n2b. ε-greedy in compiled loops: shared helper {shared / 1e6:.1f} M decisions/s, written out by hand "
-          f"{by_hand / 1e6:.1f} M ({shared / by_hand:.0%})")
+    print(
+        f"\n2b. ε-greedy in compiled loops: shared helper {shared / 1e6:.1f} M decisions/s, written out by hand "
+        f"{by_hand / 1e6:.1f} M ({shared / by_hand:.0%})"
+    )
 
     print("\n3. nearest vector, µs per query (2-D): brute force in a compiled loop vs k-d tree batch query")
     print(f"   {'vectors':>8} {'brute':>8} {'k-d tree':>9}")
@@ -344,13 +360,18 @@ def main() -> None:
     avq_bin = os.path.join(os.path.dirname(sys.executable), "avq")
     with tempfile.TemporaryDirectory() as tmp:
         timed_command([avq_bin, "reproduce", "--out", os.path.join(tmp, "warm"), "--no-progress"])
-        warm = min(timed_command([avq_bin, "reproduce", "--out", os.path.join(tmp, f"r{k}"), "--no-progress"])
-                   for k in range(2))
+        warm = min(
+            timed_command([avq_bin, "reproduce", "--out", os.path.join(tmp, f"r{k}"), "--no-progress"])
+            for k in range(2)
+        )
         print(f"\n4. avq reproduce (defaults), process start to files written, warm cache: {warm:.1f} s")
         cold_env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "numba-cache"))
-        probe = [sys.executable, "-c",
-                 "import gymnasium as gym, avq; avq.make_agent('avq-paper', gym.make('avq/GridMaze-v0'), seed=0)"
-                 ".learn(total_episodes=5)"]
+        probe = [
+            sys.executable,
+            "-c",
+            "import gymnasium as gym, avq; avq.make_agent('avq-paper', gym.make('avq/GridMaze-v0'), seed=0)"
+            ".learn(total_episodes=5)",
+        ]
         cold = timed_command(probe, cold_env)
         cached = timed_command(probe, cold_env)
         print(f"5. start-up (import, make, 5 episodes): empty compilation cache {cold:.1f} s, cached {cached:.1f} s")

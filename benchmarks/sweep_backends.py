@@ -27,8 +27,16 @@ def config(episodes: int, seeds: int, grid: dict) -> dict:
     # The general Sarsa(λ) defaults (as measured in docs/results/general-defaults.md), not the maze rules avq takes on RobotMaze.
     general = {**avq.AGENTS["avq-sarsa"][1], "collision_split": False, "merge_pairs": "mutual", "max_cells": 10_000}
     params = {k: v for k, v in general.items() if k not in grid}
-    return {"env": "avq/RobotMaze-v0", "agents": ["avq-sarsa"], "grid": grid, "params": params, "seeds": seeds,
-            "episodes": episodes, "eval_episodes": 5, "save_models": True}
+    return {
+        "env": "avq/RobotMaze-v0",
+        "agents": ["avq-sarsa"],
+        "grid": grid,
+        "params": params,
+        "seeds": seeds,
+        "episodes": episodes,
+        "eval_episodes": 5,
+        "save_models": True,
+    }
 
 
 def table(out: Path) -> list[dict[str, str]]:
@@ -47,13 +55,19 @@ def main() -> None:
     grid = {"alpha": [0.1, 0.3], "epsilon": [0.05, 0.1], "d_min": [0.05, 0.1]}
     cfg = config(30, 2, grid) if args.quick else config(300, 10, grid)
     n_trials = 8 * cfg["seeds"]
-    print(f"machine: {os.cpu_count()} cores; avq {avq.__version__}; {n_trials} trials of {cfg['episodes']} "
-          f"episodes on RobotMaze; {args.jobs} workers")
+    print(
+        f"machine: {os.cpu_count()} cores; avq {avq.__version__}; {n_trials} trials of {cfg['episodes']} "
+        f"episodes on RobotMaze; {args.jobs} workers"
+    )
     # Warm the compilation cache so that no backend pays for compiling.
     with tempfile.TemporaryDirectory() as tmp:
         run_sweep(config(2, 1, {"alpha": [0.1]}), Path(tmp) / "warm", jobs=1, progress=False)
-    runs = [("one process, one after another", "local", 1), ("local (joblib processes)", "local", args.jobs),
-            ("ray (local cluster started)", "ray", args.jobs), ("dask (LocalCluster started)", "dask", args.jobs)]
+    runs = [
+        ("one process, one after another", "local", 1),
+        ("local (joblib processes)", "local", args.jobs),
+        ("ray (local cluster started)", "ray", args.jobs),
+        ("dask (LocalCluster started)", "dask", args.jobs),
+    ]
     times: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as tmp:
         reference = None
@@ -72,8 +86,10 @@ def main() -> None:
             same = rows == reference
             with open(out / "results.csv", encoding="utf-8") as f:
                 trial_s = sum(float(r["wall_s"]) for r in csv.DictReader(f))
-            print(f"   {label:<32} {times[label]:>7.1f} s   (sum of trial times {trial_s:.1f} s)   "
-                  f"results {'identical' if same else 'DIFFERENT'}")
+            print(
+                f"   {label:<32} {times[label]:>7.1f} s   (sum of trial times {trial_s:.1f} s)   "
+                f"results {'identical' if same else 'DIFFERENT'}"
+            )
     base = times.get("one process, one after another")
     local = times.get("local (joblib processes)")
     if base and local:

@@ -41,8 +41,10 @@ ROWS: dict[str, tuple[str, dict]] = {
     "no cell cap": ("avq", {"max_cells": 10_000}),
     "make room at the cap": ("avq", {"make_room": True}),
     "constant epsilon 0.05 (no schedule)": ("avq", {"epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
-    "constant epsilon 0.05 and no cycle split (avq-maze)": ("avq", {"epsilon": 0.05, "epsilon_decay": 1.0,
-                                                                    "epsilon_min": 0.0, "cycle_split": False}),
+    "constant epsilon 0.05 and no cycle split (avq-maze)": (
+        "avq",
+        {"epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0, "cycle_split": False},
+    ),
     "alpha 0.5 decaying by 0.998 to 0.05": ("avq", {"alpha_decay": 0.998, "alpha_min": 0.05}),
     "vectors adapt: rate 0.01": ("avq", {"adapt_rate": 0.01}),
     "vectors adapt: rate 0.05": ("avq", {"adapt_rate": 0.05}),
@@ -70,9 +72,16 @@ CHECK_SEEDS, CHECK_MAZES = range(300, 400), range(300, 360)
 def one(row: str, agent: str, overrides: dict, where: str, seed: int, maze: int | None) -> dict:
     layout = "lau2002" if maze is None else random_layout(13, 13, 0.2, seed=maze)
     r = train_maze_run(agent, layout, seed, 1000, overrides=overrides)
-    return {"row": row, "where": where, "seed": seed, "maze": "" if maze is None else maze,
-            "success": round(r.success_rate, 4), "cells": r.n_cells,
-            "path_ratio": "" if r.path_ratio is None else round(r.path_ratio, 4), "env_steps": r.env_steps}
+    return {
+        "row": row,
+        "where": where,
+        "seed": seed,
+        "maze": "" if maze is None else maze,
+        "success": round(r.success_rate, 4),
+        "cells": r.n_cells,
+        "path_ratio": "" if r.path_ratio is None else round(r.path_ratio, 4),
+        "env_steps": r.env_steps,
+    }
 
 
 def _all_three(r: dict) -> bool:
@@ -83,9 +92,11 @@ def summarize(rs: list[dict]) -> str:
     succ = np.array([r["success"] for r in rs])
     ratios = [r["path_ratio"] for r in rs if r["path_ratio"] != ""]
     cells = [r["cells"] for r in rs]
-    return (f"{succ.mean():.3f} ({succ.min():.2f}) | {sum(succ >= 0.95)}/{len(rs)} | "
-            f"{int(np.median(cells))} [{min(cells)}–{max(cells)}] | {np.mean(ratios):.2f} ({max(ratios):.2f}) | "
-            f"{np.mean([r['env_steps'] for r in rs]):,.0f} | **{sum(map(_all_three, rs))}/{len(rs)}**")
+    return (
+        f"{succ.mean():.3f} ({succ.min():.2f}) | {sum(succ >= 0.95)}/{len(rs)} | "
+        f"{int(np.median(cells))} [{min(cells)}–{max(cells)}] | {np.mean(ratios):.2f} ({max(ratios):.2f}) | "
+        f"{np.mean([r['env_steps'] for r in rs]):,.0f} | **{sum(map(_all_three, rs))}/{len(rs)}**"
+    )
 
 
 def main() -> None:
@@ -94,36 +105,50 @@ def main() -> None:
     assert not any("," in row for row in ROWS)
     ap.add_argument("--jobs", type=int, default=-1)
     ap.add_argument("--check", action="store_true", help="lau2002 seeds 300-399 and mazes 300-359 instead")
-    ap.add_argument("--holdout", action="store_true",
-                    help="lau2002 seeds 100-159, 200-259 and generated mazes 100-139, 200-239 instead")
-    ap.add_argument("--csv", default=None,
-                    help="where to write every run (default: docs/data/ablation_avq.csv for all rows, none for some)")
+    ap.add_argument(
+        "--holdout",
+        action="store_true",
+        help="lau2002 seeds 100-159, 200-259 and generated mazes 100-139, 200-239 instead",
+    )
+    ap.add_argument(
+        "--csv",
+        default=None,
+        help="where to write every run (default: docs/data/ablation_avq.csv for all rows, none for some)",
+    )
     args = ap.parse_args()
     rows = [r.strip() for r in args.rows.split(",")]
     unknown = [r for r in rows if r not in ROWS]
     if unknown:
         ap.error(f"unknown row {unknown[0]!r}; rows: {', '.join(ROWS)}")
-    seeds, mazes = ((CHECK_SEEDS, CHECK_MAZES) if args.check else (HOLDOUT_SEEDS, HOLDOUT_MAZES) if args.holdout
-                    else (SEEDS, MAZES))
+    seeds, mazes = (
+        (CHECK_SEEDS, CHECK_MAZES) if args.check else (HOLDOUT_SEEDS, HOLDOUT_MAZES) if args.holdout else (SEEDS, MAZES)
+    )
     jobs = [(row, *ROWS[row], "lau2002", s, None) for row in rows for s in seeds]
     jobs += [(row, *ROWS[row], "generated", 0, m) for row in rows for m in mazes]
     results = Parallel(n_jobs=args.jobs)(delayed(one)(*job) for job in jobs)
-    csv_path = args.csv or ("docs/data/ablation_avq.csv" if rows == list(ROWS) and not (args.holdout or args.check)
-                            else None)
+    csv_path = args.csv or (
+        "docs/data/ablation_avq.csv" if rows == list(ROWS) and not (args.holdout or args.check) else None
+    )
     if csv_path:
         Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
             writer = csv.DictWriter(f, fieldnames=list(results[0]))
             writer.writeheader()
             writer.writerows(results)
-    head = ("| success, mean (worst) | ≥ 95% | cells, median [range] | path ratio, mean (worst) | env steps "
-            "| all three |\n|---|---|---|---|---|---|---|")
-    tables = (("lau2002, seeds 0-9", lambda r: r["where"] == "lau2002" and r["seed"] < 10),
-              ("lau2002, seeds 0-29", lambda r: r["where"] == "lau2002"),
-              ("20 generated mazes", lambda r: r["where"] == "generated"))
+    head = (
+        "| success, mean (worst) | ≥ 95% | cells, median [range] | path ratio, mean (worst) | env steps "
+        "| all three |\n|---|---|---|---|---|---|---|"
+    )
+    tables = (
+        ("lau2002, seeds 0-9", lambda r: r["where"] == "lau2002" and r["seed"] < 10),
+        ("lau2002, seeds 0-29", lambda r: r["where"] == "lau2002"),
+        ("20 generated mazes", lambda r: r["where"] == "generated"),
+    )
     if args.holdout or args.check:
-        tables = ((f"lau2002, {len(seeds)} seeds", lambda r: r["where"] == "lau2002"),
-                  (f"{len(mazes)} generated mazes", lambda r: r["where"] == "generated"))
+        tables = (
+            (f"lau2002, {len(seeds)} seeds", lambda r: r["where"] == "lau2002"),
+            (f"{len(mazes)} generated mazes", lambda r: r["where"] == "generated"),
+        )
     for title, pick in tables:
         print(f"\n{title}\n\n| configuration {head}")
         for row in rows:

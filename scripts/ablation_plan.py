@@ -48,8 +48,9 @@ VARIANTS = {
     "tabular-ps": ("tabular-ps", {}),
 }
 MAZES = {f"lau2002 k={k}": (lambda k=k: refine_layout("lau2002", k), range(100, 105)) for k in (1, 2, 4)}
-MAZES.update({f"generated 22 #{i}": (lambda i=i: random_layout(22, 22, 0.2, seed=2000 + i), (100 + i,))
-              for i in range(5)})
+MAZES.update(
+    {f"generated 22 #{i}": (lambda i=i: random_layout(22, 22, 0.2, seed=2000 + i), (100 + i,)) for i in range(5)}
+)
 BUDGET = 300_000
 
 
@@ -61,10 +62,19 @@ def run(variant: str, maze: str, seed: int) -> dict:
     agent = avq.make_agent(name, make(), seed=seed, **overrides)
     t = time.perf_counter()
     reached, success, _ = learn_until(agent, make(), BUDGET, 0.95, max_steps=limit)
-    return {"variant": variant, "maze": maze, "squares": parse_layout(rows).n_states, "seed": seed,
-            "reached": reached, "env_steps": agent.num_timesteps, "cells": agent.n_cells, "success": success,
-            "backups": getattr(agent, "backups_", 0), "queued": getattr(agent, "queued_", 0),
-            "wall_s": round(time.perf_counter() - t, 2)}
+    return {
+        "variant": variant,
+        "maze": maze,
+        "squares": parse_layout(rows).n_states,
+        "seed": seed,
+        "reached": reached,
+        "env_steps": agent.num_timesteps,
+        "cells": agent.n_cells,
+        "success": success,
+        "backups": getattr(agent, "backups_", 0),
+        "queued": getattr(agent, "queued_", 0),
+        "wall_s": round(time.perf_counter() - t, 2),
+    }
 
 
 def main() -> None:
@@ -77,8 +87,12 @@ def main() -> None:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    groups = {"lau2002 k=1": ["lau2002 k=1"], "lau2002 k=2": ["lau2002 k=2"], "lau2002 k=4": ["lau2002 k=4"],
-              "generated 22 (5 mazes)": [m for m in MAZES if m.startswith("generated")]}
+    groups = {
+        "lau2002 k=1": ["lau2002 k=1"],
+        "lau2002 k=2": ["lau2002 k=2"],
+        "lau2002 k=4": ["lau2002 k=4"],
+        "generated 22 (5 mazes)": [m for m in MAZES if m.startswith("generated")],
+    }
     print(f"\n{'variant':<22}" + "".join(f"{g:>34}" for g in groups))
     for variant in VARIANTS:
         cells = []
@@ -87,8 +101,10 @@ def main() -> None:
             steps = [r["env_steps"] for r in rs]
             got = sum(r["reached"] for r in rs)
             mark = "" if got == len(rs) else ">"
-            cells.append(f"{mark}{int(statistics.median(steps)):,} [{min(steps):,}-{max(steps):,}] "
-                         f"{got}/{len(rs)} c{int(statistics.median(r['cells'] for r in rs))}")
+            cells.append(
+                f"{mark}{int(statistics.median(steps)):,} [{min(steps):,}-{max(steps):,}] "
+                f"{got}/{len(rs)} c{int(statistics.median(r['cells'] for r in rs))}"
+            )
         print(f"{variant:<22}" + "".join(f"{c:>34}" for c in cells))
     print(f"\nwrote {out}")
 

@@ -45,8 +45,14 @@ def run(task: str, cfg: dict, seed: int, episodes: int) -> dict:
     score = float(np.mean(h["return"][-100:]))
     if task in ("avq/GridMaze-v0", "avq/RobotMaze-v0"):
         score = evaluate_maze(agent, gym.make(task))["success_rate"]
-    return {"task": task, **cfg, "seed": seed, "score": score, "n_cells": agent.n_cells,
-            "env_steps": agent.num_timesteps}
+    return {
+        "task": task,
+        **cfg,
+        "seed": seed,
+        "score": score,
+        "n_cells": agent.n_cells,
+        "env_steps": agent.num_timesteps,
+    }
 
 
 def main() -> None:
@@ -58,8 +64,8 @@ def main() -> None:
     args = ap.parse_args()
     configs = [dict(zip(GRID, vals)) for vals in itertools.product(*GRID.values())]
     rows = Parallel(n_jobs=args.jobs)(
-        delayed(run)(t, c, s, args.episodes)
-        for t, c, s in itertools.product(TASKS, configs, range(args.seeds)))
+        delayed(run)(t, c, s, args.episodes) for t, c, s in itertools.product(TASKS, configs, range(args.seeds))
+    )
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
@@ -79,8 +85,14 @@ def main() -> None:
         for rank, k in enumerate(order):
             ranks[k] += rank / len(TASKS)
     for k in sorted(ranks, key=ranks.get)[:10]:
-        print(dict(zip(keys, k)), {t: round(means[k][t], 2) for t in TASKS},
-              "mean rank", round(ranks[k], 1), "cells", int(np.median(cells[k])))
+        print(
+            dict(zip(keys, k)),
+            {t: round(means[k][t], 2) for t in TASKS},
+            "mean rank",
+            round(ranks[k], 1),
+            "cells",
+            int(np.median(cells[k])),
+        )
 
 
 if __name__ == "__main__":

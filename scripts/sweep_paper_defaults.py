@@ -32,8 +32,14 @@ SPACE = {
 
 def run(cfg: dict, seed: int, trials: int) -> dict:
     r = train_maze_run("avq-paper", "lau2002", seed, trials, overrides=cfg)
-    return {**cfg, "seed": seed, "n_cells": r.n_cells, "success": r.success_rate,
-            "path_ratio": r.path_ratio if r.path_ratio is not None else np.nan, "env_steps": r.env_steps}
+    return {
+        **cfg,
+        "seed": seed,
+        "n_cells": r.n_cells,
+        "success": r.success_rate,
+        "path_ratio": r.path_ratio if r.path_ratio is not None else np.nan,
+        "env_steps": r.env_steps,
+    }
 
 
 def summarize(rows: list[dict]) -> list[dict]:
@@ -43,12 +49,17 @@ def summarize(rows: list[dict]) -> list[dict]:
         groups.setdefault(tuple(r[k] for k in keys), []).append(r)
     out = []
     for cfg, rs in groups.items():
-        out.append({**dict(zip(keys, cfg)), "seeds": len(rs),
-                    "success_mean": float(np.mean([r["success"] for r in rs])),
-                    "success_min": float(np.min([r["success"] for r in rs])),
-                    "cells_median": float(np.median([r["n_cells"] for r in rs])),
-                    "path_ratio": float(np.nanmean([r["path_ratio"] for r in rs])),
-                    "env_steps": float(np.mean([r["env_steps"] for r in rs]))})
+        out.append(
+            {
+                **dict(zip(keys, cfg)),
+                "seeds": len(rs),
+                "success_mean": float(np.mean([r["success"] for r in rs])),
+                "success_min": float(np.min([r["success"] for r in rs])),
+                "cells_median": float(np.median([r["n_cells"] for r in rs])),
+                "path_ratio": float(np.nanmean([r["path_ratio"] for r in rs])),
+                "env_steps": float(np.mean([r["env_steps"] for r in rs])),
+            }
+        )
     out.sort(key=lambda r: (-r["success_mean"], r["cells_median"]))
     return out
 
@@ -66,11 +77,13 @@ def main() -> None:
     rng = np.random.default_rng(args.rng)
     configs = [{k: v[rng.integers(len(v))] for k, v in SPACE.items()} for _ in range(args.configs)]
     stage1 = Parallel(n_jobs=args.jobs)(
-        delayed(run)(c, s, args.trials) for c, s in itertools.product(configs, range(100, 100 + args.seeds)))
+        delayed(run)(c, s, args.trials) for c, s in itertools.product(configs, range(100, 100 + args.seeds))
+    )
     best = summarize(stage1)[: args.top]
     finalists = [{k: b[k] for k in SPACE} for b in best]
     stage2 = Parallel(n_jobs=args.jobs)(
-        delayed(run)(c, s, args.trials) for c, s in itertools.product(finalists, range(10)))
+        delayed(run)(c, s, args.trials) for c, s in itertools.product(finalists, range(10))
+    )
     final = summarize(stage2)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=["stage"] + list(final[0]))

@@ -34,8 +34,23 @@ import numpy as np
 OUT = "docs/data/tune_general.csv"
 TASKS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
 EPISODES = 300
-FIELDS = ["phase", "task", "max_repeat", "max_cells", "seed", "episodes", "final_return", "cells", "cells_max",
-          "cells_30", "cells_100", "refused", "decisions", "env_steps", "wall_s"]
+FIELDS = [
+    "phase",
+    "task",
+    "max_repeat",
+    "max_cells",
+    "seed",
+    "episodes",
+    "final_return",
+    "cells",
+    "cells_max",
+    "cells_30",
+    "cells_100",
+    "refused",
+    "decisions",
+    "env_steps",
+    "wall_s",
+]
 
 
 def run(phase: str, task: str, max_repeat: int | None, max_cells: int, seed: int) -> dict:
@@ -47,11 +62,23 @@ def run(phase: str, task: str, max_repeat: int | None, max_cells: int, seed: int
     t0 = time.perf_counter()
     agent.learn(total_episodes=EPISODES)
     h = agent.episode_history()
-    return dict(phase=phase, task=task, max_repeat="none" if max_repeat is None else max_repeat, max_cells=max_cells,
-                seed=seed, episodes=EPISODES, final_return=round(float(h["return"][-EPISODES // 10:].mean()), 3),
-                cells=agent.n_cells, cells_max=int(h["n_cells"].max()), cells_30=int(h["n_cells"][29]),
-                cells_100=int(h["n_cells"][99]), refused=int(h["refused"].sum()), decisions=int(h["decisions"].sum()),
-                env_steps=agent.num_timesteps, wall_s=round(time.perf_counter() - t0, 1))
+    return dict(
+        phase=phase,
+        task=task,
+        max_repeat="none" if max_repeat is None else max_repeat,
+        max_cells=max_cells,
+        seed=seed,
+        episodes=EPISODES,
+        final_return=round(float(h["return"][-EPISODES // 10 :].mean()), 3),
+        cells=agent.n_cells,
+        cells_max=int(h["n_cells"].max()),
+        cells_30=int(h["n_cells"][29]),
+        cells_100=int(h["n_cells"][99]),
+        refused=int(h["refused"].sum()),
+        decisions=int(h["decisions"].sum()),
+        env_steps=agent.num_timesteps,
+        wall_s=round(time.perf_counter() - t0, 1),
+    )
 
 
 def save(row: dict, out: str = OUT, fields: list[str] = FIELDS) -> None:
@@ -72,12 +99,18 @@ def table(phase: str) -> str:
     """The rows of ``phase`` as a Markdown table: a line per setting, a column per task."""
     with open(OUT, newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["phase"] == phase]
-    settings = sorted({(r["max_repeat"], int(r["max_cells"])) for r in rows},
-                      key=lambda s: (s[1], -1 if s[0] == "none" else int(s[0])))
+    settings = sorted(
+        {(r["max_repeat"], int(r["max_cells"])) for r in rows},
+        key=lambda s: (s[1], -1 if s[0] == "none" else int(s[0])),
+    )
     seeds = sorted({int(r["seed"]) for r in rows})
-    lines = [f"Seeds {', '.join(map(str, seeds))}; final return median [min, max] over the seeds / cells at the end "
-             "(median [min, max]).", "",
-             "| max_repeat | max_cells | " + " | ".join(TASKS) + " |", "|---|---|" + "---|" * len(TASKS)]
+    lines = [
+        f"Seeds {', '.join(map(str, seeds))}; final return median [min, max] over the seeds / cells at the end "
+        "(median [min, max]).",
+        "",
+        "| max_repeat | max_cells | " + " | ".join(TASKS) + " |",
+        "|---|---|" + "---|" * len(TASKS),
+    ]
     for mr, mc in settings:
         cells = []
         for task in TASKS:
@@ -100,8 +133,13 @@ def main(argv: list[str]) -> None:
 
     phase, seeds, repeats, budgets = argv[1], argv[2], argv[3], argv[4]
     tasks = argv[5].split(",") if len(argv) > 5 else TASKS
-    jobs = [(phase, task, None if mr == "none" else int(mr), int(mc), int(seed)) for task in tasks
-            for mc in budgets.split(",") for mr in repeats.split(",") for seed in seeds.split(",")]
+    jobs = [
+        (phase, task, None if mr == "none" else int(mr), int(mc), int(seed))
+        for task in tasks
+        for mc in budgets.split(",")
+        for mr in repeats.split(",")
+        for seed in seeds.split(",")
+    ]
     jobs.sort(key=lambda j: -j[3])  # the slowest (largest budgets) first, so that the two jobs end together
     for row in Parallel(n_jobs=2, return_as="generator_unordered")(delayed(run)(*job) for job in jobs):
         save(row)

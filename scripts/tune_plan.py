@@ -8,6 +8,7 @@ split_threshold 5, tol 1e-6; docs/results/planning.md).
 
     python scripts/tune_plan.py default,st10,tabular all 0,1,2,3,4,5,6,7,8,9
 """
+
 import csv
 import json
 import os
@@ -18,12 +19,31 @@ import numpy as np
 
 BUDGET = 300_000
 OUT = "docs/data/tuning_plan.csv"
-FIELDS = ["variant", "agent", "overrides", "maze", "squares", "seed", "reached", "steps", "success", "cells",
-          "backups", "queued", "episodes", "goal_eps", "splits_dup", "empty_cells", "wall_s", "error"]
+FIELDS = [
+    "variant",
+    "agent",
+    "overrides",
+    "maze",
+    "squares",
+    "seed",
+    "reached",
+    "steps",
+    "success",
+    "cells",
+    "backups",
+    "queued",
+    "episodes",
+    "goal_eps",
+    "splits_dup",
+    "empty_cells",
+    "wall_s",
+    "error",
+]
 
 
 def mazes():
     import avq
+
     return {
         "lau2002_k1": avq.envs.refine_layout("lau2002", 1),
         "lau2002_k2": avq.envs.refine_layout("lau2002", 2),
@@ -35,6 +55,7 @@ def mazes():
 
 def learn_until(agent, eval_env, budget, limit):
     import avq
+
     chunk = 1
     while agent.num_timesteps < budget:
         agent.learn(total_episodes=chunk)
@@ -49,21 +70,34 @@ def run(variant, agent_name, overrides, maze, seed):
     import gymnasium as gym
 
     import avq
+
     rows = mazes()[maze]
     limit = 4 * (len(rows) + len(rows[0]))
     squares = sum(r.count(".") + r.count("G") + r.count("S") for r in rows)
-    rec = dict(variant=variant, agent=agent_name, overrides=json.dumps(overrides), maze=maze, squares=squares,
-               seed=seed, error="")
+    rec = dict(
+        variant=variant,
+        agent=agent_name,
+        overrides=json.dumps(overrides),
+        maze=maze,
+        squares=squares,
+        seed=seed,
+        error="",
+    )
     t0 = time.time()
     try:
         env = gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit)
         eval_env = gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit)
         agent = avq.make_agent(agent_name, env, seed=seed, **overrides)
         ok, s = learn_until(agent, eval_env, BUDGET, limit)
-        rec.update(reached=int(ok), steps=int(agent.num_timesteps), success=round(float(s), 4),
-                   cells=int(getattr(agent, "n_cells", -1)),
-                   backups=int(getattr(agent, "backups_", -1)), queued=int(getattr(agent, "queued_", -1)),
-                   episodes=int(agent.num_episodes))
+        rec.update(
+            reached=int(ok),
+            steps=int(agent.num_timesteps),
+            success=round(float(s), 4),
+            cells=int(getattr(agent, "n_cells", -1)),
+            backups=int(getattr(agent, "backups_", -1)),
+            queued=int(getattr(agent, "queued_", -1)),
+            episodes=int(agent.num_episodes),
+        )
         h = agent.history_.columns()
         rec["goal_eps"] = int((np.asarray(h["steps"]) < limit).sum())  # training episodes that reached the goal
         if agent_name == "avq-plan":
@@ -75,7 +109,10 @@ def run(variant, agent_name, overrides, maze, seed):
             rec["empty_cells"] = int((owned == 0).sum())  # cells that own no free square
     except Exception as e:  # record, keep going
         import traceback
-        rec.update(reached=0, steps=BUDGET, error=repr(e)[:300] + " | " + traceback.format_exc()[-300:].replace("\n", " "))
+
+        rec.update(
+            reached=0, steps=BUDGET, error=repr(e)[:300] + " | " + traceback.format_exc()[-300:].replace("\n", " ")
+        )
     rec["wall_s"] = round(time.time() - t0, 1)
     return rec
 
@@ -92,6 +129,7 @@ def save(recs):
 
 def main(jobs):
     from joblib import Parallel, delayed
+
     par = Parallel(n_jobs=2, return_as="generator_unordered")
     for rec in par(delayed(run)(*j) for j in jobs):
         save([rec])
@@ -102,9 +140,14 @@ ALL_MAZES = ["lau2002_k1", "lau2002_k2", "lau2002_k4", "rand22", "rand42"]
 VARIANTS = {
     "default": {},
     "cg_off": {"collision_growth": False},
-    "st2": {"split_threshold": 2.0}, "st7": {"split_threshold": 7.0}, "st10": {"split_threshold": 10.0}, "st20": {"split_threshold": 20.0},
-    "g099": {"gamma": 0.99}, "g095": {"gamma": 0.95},
-    "nb10": {"n_backups": 10}, "nb1000": {"n_backups": 1000},
+    "st2": {"split_threshold": 2.0},
+    "st7": {"split_threshold": 7.0},
+    "st10": {"split_threshold": 10.0},
+    "st20": {"split_threshold": 20.0},
+    "g099": {"gamma": 0.99},
+    "g095": {"gamma": 0.95},
+    "nb10": {"n_backups": 10},
+    "nb1000": {"n_backups": 1000},
     "os_off": {"outcome_split": False},
     "ka2": {"known_after": 2},
     # combinations (step 6)

@@ -38,8 +38,21 @@ from tune_general import save as append_row  # noqa: E402
 OUT = "docs/data/tune_plan_general.csv"
 TASKS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
 EPISODES = 300
-FIELDS = ["phase", "task", "setting", "seed", "episodes", "final_return", "steps_to_threshold", "cells", "cells_30",
-          "cells_100", "refused", "env_steps", "wall_s"]
+FIELDS = [
+    "phase",
+    "task",
+    "setting",
+    "seed",
+    "episodes",
+    "final_return",
+    "steps_to_threshold",
+    "cells",
+    "cells_30",
+    "cells_100",
+    "refused",
+    "env_steps",
+    "wall_s",
+]
 
 
 def run(phase: str, task: str, setting: dict, seed: int) -> dict:
@@ -52,11 +65,21 @@ def run(phase: str, task: str, setting: dict, seed: int) -> dict:
     agent.learn(total_episodes=EPISODES)
     h = agent.episode_history()
     reached = steps_to_threshold(h["return"], h["steps"], THRESHOLDS[task])
-    return dict(phase=phase, task=task, setting=json.dumps(setting, sort_keys=True), seed=seed, episodes=EPISODES,
-                final_return=round(float(h["return"][-EPISODES // 10:].mean()), 3),
-                steps_to_threshold="" if reached is None else reached, cells=agent.n_cells,
-                cells_30=int(h["n_cells"][29]), cells_100=int(h["n_cells"][99]), refused=int(h["refused"].sum()),
-                env_steps=agent.num_timesteps, wall_s=round(time.perf_counter() - t0, 1))
+    return dict(
+        phase=phase,
+        task=task,
+        setting=json.dumps(setting, sort_keys=True),
+        seed=seed,
+        episodes=EPISODES,
+        final_return=round(float(h["return"][-EPISODES // 10 :].mean()), 3),
+        steps_to_threshold="" if reached is None else reached,
+        cells=agent.n_cells,
+        cells_30=int(h["n_cells"][29]),
+        cells_100=int(h["n_cells"][99]),
+        refused=int(h["refused"].sum()),
+        env_steps=agent.num_timesteps,
+        wall_s=round(time.perf_counter() - t0, 1),
+    )
 
 
 def save(row: dict) -> None:
@@ -69,16 +92,23 @@ def table(phase: str) -> str:
         rows = [r for r in csv.DictReader(f) if r["phase"] == phase]
     settings = sorted({r["setting"] for r in rows})
     seeds = sorted({int(r["seed"]) for r in rows})
-    med = {(s, t): [float(r["final_return"]) for r in rows if r["setting"] == s and r["task"] == t]
-           for s in settings for t in TASKS}
+    med = {
+        (s, t): [float(r["final_return"]) for r in rows if r["setting"] == s and r["task"] == t]
+        for s in settings
+        for t in TASKS
+    }
     ranks = {s: 0.0 for s in settings}
     for t in TASKS:
         order = sorted(settings, key=lambda s: -np.median(med[s, t]) if med[s, t] else np.inf)
         for k, s in enumerate(order):
             ranks[s] += k / len(TASKS)
-    lines = [f"Seeds {', '.join(map(str, seeds))}; final return median [min, max] over the seeds / cells at the end "
-             "(median) / runs that reached the threshold; settings by mean rank of the median over the tasks.", "",
-             "| setting | mean rank | " + " | ".join(TASKS) + " |", "|---|---|" + "---|" * len(TASKS)]
+    lines = [
+        f"Seeds {', '.join(map(str, seeds))}; final return median [min, max] over the seeds / cells at the end "
+        "(median) / runs that reached the threshold; settings by mean rank of the median over the tasks.",
+        "",
+        "| setting | mean rank | " + " | ".join(TASKS) + " |",
+        "|---|---|" + "---|" * len(TASKS),
+    ]
     for s in sorted(settings, key=lambda s: ranks[s]):
         cells = []
         for t in TASKS:
@@ -112,7 +142,7 @@ def main(argv: list[str]) -> int:
     rest = argv[3:]
     if "--tasks" in rest:
         k = rest.index("--tasks")
-        tasks, rest = tuple(rest[k + 1].split(",")), rest[:k] + rest[k + 2:]
+        tasks, rest = tuple(rest[k + 1].split(",")), rest[:k] + rest[k + 2 :]
     for item in rest:
         name, values = item.split("=", 1)
         grid[name] = [_value(v) for v in values.split(",")]

@@ -25,8 +25,14 @@ class ScriptedEnv(gym.Env):
     collision)``. Episodes repeat cyclically.
     """
 
-    def __init__(self, episodes: Sequence[tuple[Sequence[float], Sequence[tuple]]], n_actions: int = 2,
-                 low: float = -10.0, high: float = 10.0, dims: int = 2) -> None:
+    def __init__(
+        self,
+        episodes: Sequence[tuple[Sequence[float], Sequence[tuple]]],
+        n_actions: int = 2,
+        low: float = -10.0,
+        high: float = 10.0,
+        dims: int = 2,
+    ) -> None:
         self.episodes = episodes
         self.observation_space = spaces.Box(low, high, shape=(dims,), dtype=np.float64)
         self.action_space = spaces.Discrete(n_actions)
@@ -92,5 +98,7 @@ def cli_subprocess(*args: str, cwd=None) -> CliResult:
 
 #: Parametrise a test of the command line on both: the fast run checks every case in this process, the full
 #: run (``pytest``) also through a new process.
-CLI_RUNNERS = [pytest.param(cli_in_process, id="in-process"),
-               pytest.param(cli_subprocess, id="subprocess", marks=pytest.mark.slow)]
+CLI_RUNNERS = [
+    pytest.param(cli_in_process, id="in-process"),
+    pytest.param(cli_subprocess, id="subprocess", marks=pytest.mark.slow),
+]

@@ -143,10 +143,19 @@ def test_registered_by_name():
 
 @pytest.mark.parametrize(
     "param,value,match",
-    [("init_actions", 0, "init_actions must be an integer >= 1"), ("max_actions", 1, "max_actions"),
-     ("adapt_every", 0, "adapt_every"), ("d_min", 0.0, r"d_min must be in \(0.0, 1.0\]"), ("d_min", 1.5, "d_min"),
-     ("rho", -1.0, "rho"), ("memory", 0, "memory"), ("fixed", "yes", "fixed"), ("alpha", 0.0, "alpha"),
-     ("tiles_per_dim", [8, 8], "tiles_per_dim must be an int or 3"), ("iht_size", 4, "iht_size")],
+    [
+        ("init_actions", 0, "init_actions must be an integer >= 1"),
+        ("max_actions", 1, "max_actions"),
+        ("adapt_every", 0, "adapt_every"),
+        ("d_min", 0.0, r"d_min must be in \(0.0, 1.0\]"),
+        ("d_min", 1.5, "d_min"),
+        ("rho", -1.0, "rho"),
+        ("memory", 0, "memory"),
+        ("fixed", "yes", "fixed"),
+        ("alpha", 0.0, "alpha"),
+        ("tiles_per_dim", [8, 8], "tiles_per_dim must be an int or 3"),
+        ("iht_size", 4, "iht_size"),
+    ],
 )
 def test_bad_parameters_name_the_parameter(param, value, match):
     with pytest.raises(ValueError, match=match):
@@ -237,13 +246,15 @@ def _set(key, value):
 
 @pytest.mark.parametrize(
     "arrays,meta",
-    [(_set("action_units", lambda u: u + 2.0), None),  # outside the box
-     (_set("action_units", lambda u: np.zeros((0, 1))), None),  # no actions
-     (_set("action_units", lambda u: np.zeros((18, 1))), None),  # more than max_actions
-     (_set("weights", lambda w: w[:, :5]), None),
-     (_set("recent", lambda r: r + 10_000), None),  # tiles outside the table
-     (None, lambda m: m["state"].__setitem__("recent_count", 1)),
-     (_set("action_units", lambda u: u[:, :0]), None)],
+    [
+        (_set("action_units", lambda u: u + 2.0), None),  # outside the box
+        (_set("action_units", lambda u: np.zeros((0, 1))), None),  # no actions
+        (_set("action_units", lambda u: np.zeros((18, 1))), None),  # more than max_actions
+        (_set("weights", lambda w: w[:, :5]), None),
+        (_set("recent", lambda r: r + 10_000), None),  # tiles outside the table
+        (None, lambda m: m["state"].__setitem__("recent_count", 1)),
+        (_set("action_units", lambda u: u[:, :0]), None),
+    ],
 )
 def test_a_corrupt_file_is_a_value_error(tmp_path, arrays, meta):
     agent = make_agent("avq-actions", "Pendulum-v1", seed=0, adapt_every=1).learn(total_episodes=2)

@@ -115,12 +115,26 @@ def test_load_refuses_foreign_and_mismatched_files(tmp_path):
 
 @pytest.mark.parametrize(
     "param,value,match",
-    [("alpha", 0.0, r"alpha must be in \(0.0, 1.0\]"), ("alpha", 1.5, "alpha"), ("lam", -0.1, "lam"),
-     ("gamma", 1.1, "gamma"), ("epsilon", 2, "epsilon"), ("d_min", -1, "d_min"), ("rho", -0.5, "rho"),
-     ("chi", 1.0, "chi"), ("chi", 0.0, "chi"), ("q_init", float("nan"), "q_init"),
-     ("traces", "dutch", "traces"), ("merge_every", -1, "merge_every"), ("merge_every", 1.5, "merge_every"),
-     ("value_trigger", 0.0, "value_trigger"), ("seed", -3, "seed"), ("alpha", "0.1", "alpha"),
-     ("max_cells", 0, "max_cells"), ("scale", [1.0, 0.0], "scale")],
+    [
+        ("alpha", 0.0, r"alpha must be in \(0.0, 1.0\]"),
+        ("alpha", 1.5, "alpha"),
+        ("lam", -0.1, "lam"),
+        ("gamma", 1.1, "gamma"),
+        ("epsilon", 2, "epsilon"),
+        ("d_min", -1, "d_min"),
+        ("rho", -0.5, "rho"),
+        ("chi", 1.0, "chi"),
+        ("chi", 0.0, "chi"),
+        ("q_init", float("nan"), "q_init"),
+        ("traces", "dutch", "traces"),
+        ("merge_every", -1, "merge_every"),
+        ("merge_every", 1.5, "merge_every"),
+        ("value_trigger", 0.0, "value_trigger"),
+        ("seed", -3, "seed"),
+        ("alpha", "0.1", "alpha"),
+        ("max_cells", 0, "max_cells"),
+        ("scale", [1.0, 0.0], "scale"),
+    ],
 )
 def test_bad_parameters_name_the_parameter(param, value, match):
     with pytest.raises(ValueError, match=match):
@@ -153,7 +167,9 @@ def test_avq_scale_from_bounds_and_unbounded_dimension_error():
         AVQSarsa(gym.make("CartPole-v1"), scale=None)
     AVQSarsa(gym.make("CartPole-v1"), scale=[1.0, 1.0, 1.0, 1.0])
     AVQSarsa(gym.make("CartPole-v1"))  # scale="auto": estimated for the unbounded dimensions
-    with pytest.raises(ValueError, match="scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not 'atuo'"):
+    with pytest.raises(
+        ValueError, match="scale must be 'auto', 'spread', None, a number > 0 or one per dimension, not 'atuo'"
+    ):
         AVQSarsa(gym.make("CartPole-v1"), scale="atuo")
 
 
@@ -247,22 +263,27 @@ def test_evaluate_maze_refuses_an_agent_trained_on_another_layout_as_load_does(t
         evaluate_maze(agent, maze("open5"))
     with pytest.raises(ValueError) as loading:
         avq.load(agent.save(tmp_path / "m.zip"), env=maze("open5"))
-    told = ("the agent was trained on avq/GridMaze-v0 with layout='lau2002', max_episode_steps=100, whose "
-            "observation_space is Box(low=[0.0, 0.0], high=[13.0, 11.0]), but env's is Box(low=[0.0, 0.0], "
-            "high=[4.0, 4.0]); pass an environment made like the one it was trained on (the same id and "
-            "gymnasium.make arguments: on a maze, the same layout)")
+    told = (
+        "the agent was trained on avq/GridMaze-v0 with layout='lau2002', max_episode_steps=100, whose "
+        "observation_space is Box(low=[0.0, 0.0], high=[13.0, 11.0]), but env's is Box(low=[0.0, 0.0], "
+        "high=[4.0, 4.0]); pass an environment made like the one it was trained on (the same id and "
+        "gymnasium.make arguments: on a maze, the same layout)"
+    )
     assert str(evaluating.value) == f"evaluate_maze: {told}"
     assert str(loading.value) == f"{tmp_path / 'm.zip'}: {told}"
     assert evaluate_maze(agent, maze())["success_rate"] >= 0.0  # its own layout is accepted
 
 
 @pytest.mark.parametrize("name", ["avq", "tabular", "grid", "tiles"])
-@pytest.mark.parametrize(("bad_step", "where"), [
-    (((np.nan, 1.0), -1.0, False, False, False), "observation"),
-    (((1.0, -np.inf), -1.0, False, False, False), "observation"),
-    (((1.0, 1.0), np.inf, False, False, False), "reward"),
-    (((1.0, 1.0), np.nan, False, False, False), "reward"),
-])
+@pytest.mark.parametrize(
+    ("bad_step", "where"),
+    [
+        (((np.nan, 1.0), -1.0, False, False, False), "observation"),
+        (((1.0, -np.inf), -1.0, False, False, False), "observation"),
+        (((1.0, 1.0), np.inf, False, False, False), "reward"),
+        (((1.0, 1.0), np.nan, False, False, False), "reward"),
+    ],
+)
 def test_every_agent_names_the_step_of_a_non_finite_observation_or_reward(scripted, name, bad_step, where):
     good = ((1.0, 0.0), -1.0, False, False, False)
     env = scripted([((0.0, 0.0), [good, good, bad_step, good])])
@@ -323,9 +344,14 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     from avq.agents.registry import AGENTS, DEFAULTS, agent_class, agent_defaults
 
     maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
-    assert maze.get_params() == {**avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
-                                 "cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01,
-                                 "seed": 0}
+    assert maze.get_params() == {
+        **avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
+        "cycle_split": True,
+        "epsilon": 0.2,
+        "epsilon_decay": 0.995,
+        "epsilon_min": 0.01,
+        "seed": 0,
+    }
     from avq.envs import GridMaze
 
     assert avq.make_agent("avq", GridMaze(), seed=0).get_params() == maze.get_params()  # built without gym.make
@@ -344,14 +370,20 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert agent_defaults("avq", "MountainCar-v0") == AGENTS["avq"][1]
     # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism, and the pole's
     # dimensions twice as weighty as the cart's.
-    assert agent_defaults("avq", "CartPole-v1") == {**AGENTS["avq"][1], "epsilon": 0.01,
-                                                    "scale_factor": [1.0, 1.0, 0.5, 0.5]}
+    assert agent_defaults("avq", "CartPole-v1") == {
+        **AGENTS["avq"][1],
+        "epsilon": 0.01,
+        "scale_factor": [1.0, 1.0, 0.5, 0.5],
+    }
     # Acrobot-v1's: every dimension's scale estimated, the four components of the angles a third as weighty, and
     # untried decisions worth the return at which Gymnasium calls the task solved.
     acrobot = avq.make_agent("avq", "Acrobot-v1")
-    assert agent_defaults("avq", "Acrobot-v1") == {**AGENTS["avq"][1], "scale": "spread",
-                                                   "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0],
-                                                   "v_opt": gym.spec("Acrobot-v1").reward_threshold}
+    assert agent_defaults("avq", "Acrobot-v1") == {
+        **AGENTS["avq"][1],
+        "scale": "spread",
+        "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0],
+        "v_opt": gym.spec("Acrobot-v1").reward_threshold,
+    }
     assert acrobot.v_opt_ == -100.0
     high = acrobot.env.observation_space.high.astype(np.float64)
     assert acrobot.scale_.tolist() == (2 * high * [3, 3, 3, 3, 1, 1]).tolist()  # (the bounds' range until estimated)
@@ -365,8 +397,10 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     maze = make_agent("avq", "avq/GridMaze-v0", seed=0)
     used = maze.defaults_used
     assert (used.name, used.env_id, used.key, used.explicit) == ("avq", "avq/GridMaze-v0", "avq/GridMaze-v0", {})
-    assert str(used) == ("agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
-                         "(avq/agents/defaults/avq.yaml, entry 'avq/GridMaze-v0'); explicit: none")
+    assert str(used) == (
+        "agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
+        "(avq/agents/defaults/avq.yaml, entry 'avq/GridMaze-v0'); explicit: none"
+    )
     entry = DEFAULTS["avq"]["avq/GridMaze-v0"]
     assert {k: maze.get_params()[k] for k in entry} == entry
     general = make_agent("avq", "MountainCar-v0", d_min=0.2)
@@ -401,9 +435,14 @@ def test_validators_name_the_parameter_and_the_value():
         (lambda: check_range("rho", "x", 0.0, np.inf), r"rho must be a number in \[0.0, inf\], not 'x'"),
         (lambda: check_int("max_cells", True, 1), "max_cells must be an integer >= 1, not True"),
         (lambda: check_bool("fused", 1), "fused must be True or False, not 1"),
-        (lambda: check_choice("traces", "x", ("replacing", "accumulating")),
-         "traces must be 'replacing' or 'accumulating', not 'x'"),
-        (lambda: check_choice("merge_pairs", "x", ("a", "b", "c")), "merge_pairs must be one of 'a', 'b', 'c', not 'x'"),
+        (
+            lambda: check_choice("traces", "x", ("replacing", "accumulating")),
+            "traces must be 'replacing' or 'accumulating', not 'x'",
+        ),
+        (
+            lambda: check_choice("merge_pairs", "x", ("a", "b", "c")),
+            "merge_pairs must be one of 'a', 'b', 'c', not 'x'",
+        ),
         (lambda: check_optional(check_int, "seed", -1, 0), "seed must be an integer >= 0 or None, not -1"),
     ):
         with pytest.raises(ValueError, match=message):
@@ -424,8 +463,11 @@ def test_the_defaults_files_resolve_bases_and_carry_a_reason_and_a_link(tmp_path
         raw = yaml.safe_load(folder.joinpath(f"{name}.yaml").read_text(encoding="utf-8"))
         for key, entry in raw["entries"].items():
             resolved = ENTRIES[name][key]
-            assert resolved.reason.strip() and "#" in resolved.results and resolved.results.endswith(
-                resolved.results.split("#")[1])
+            assert (
+                resolved.reason.strip()
+                and "#" in resolved.results
+                and resolved.results.endswith(resolved.results.split("#")[1])
+            )
             # base: the base entry's params, then the entry's own on top.
             if "base" in entry:
                 base = DEFAULTS[entry["base"].get("agent", name)][entry["base"]["entry"]]
@@ -433,6 +475,9 @@ def test_the_defaults_files_resolve_bases_and_carry_a_reason_and_a_link(tmp_path
             else:
                 assert resolved.params == entry["params"]
     # Written out: CartPole-v0 starts from CartPole-v1's entry, which adds two values to avq-plan's "*".
-    assert DEFAULTS["avq-plan"]["CartPole-v0"] == {**DEFAULTS["avq-plan"]["*"], "epsilon": 0.01,
-                                                  "scale_factor": [1.0, 1.0, 0.5, 0.5]}
+    assert DEFAULTS["avq-plan"]["CartPole-v0"] == {
+        **DEFAULTS["avq-plan"]["*"],
+        "epsilon": 0.01,
+        "scale_factor": [1.0, 1.0, 0.5, 0.5],
+    }
     assert ENTRIES["avq"]["avq/GridMaze-v0"].cls is AVQSarsa and ENTRIES["avq"]["*"].cls is avq.PlanningAVQ

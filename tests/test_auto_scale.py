@@ -45,8 +45,13 @@ def step(x, y, end=False):
 def test_the_scale_is_four_standard_deviations_of_the_first_observations(scripted):
     # Dimension 1 takes the values below; the scale is 1 until the first episode ends, then 4 std of the
     # observations so far, until scale_warmup (5) are counted; after that it stays.
-    env = half_bounded(scripted, [((0.0, 0.0), [step(0.5, 2.0), step(0.0, -1.0, end=True)]),
-                                  ((0.0, 3.0), [step(0.0, 7.0), step(0.0, 100.0, end=True)])])
+    env = half_bounded(
+        scripted,
+        [
+            ((0.0, 0.0), [step(0.5, 2.0), step(0.0, -1.0, end=True)]),
+            ((0.0, 3.0), [step(0.0, 7.0), step(0.0, 100.0, end=True)]),
+        ],
+    )
     agent = AVQSarsa(env, scale_warmup=5, value_trigger=None, merge_every=0, seed=0)
     assert agent.scale_.tolist() == [2.0, 1.0]
     agent.learn(total_timesteps=1)
@@ -77,8 +82,9 @@ def test_a_new_scale_makes_the_merge_pass_find_its_pairs_again(scripted):
     # (2, 1), A and B are each other's nearest: no merge, and the merge pass keeps that pair. Episode 2's
     # observations (y = -10, 10) make the scale of y 4 * std(0, 0, -10, 10) = 28.3: now A and C are each
     # other's nearest, and merge into their midpoint, which the pair kept from before would not have allowed.
-    env = half_bounded(scripted, [((0.0, 0.0), [step(0.0, 0.0, end=True)]),
-                                  ((0.0, -10.0), [step(0.0, 10.0, end=True)])])
+    env = half_bounded(
+        scripted, [((0.0, 0.0), [step(0.0, 0.0, end=True)]), ((0.0, -10.0), [step(0.0, 10.0, end=True)])]
+    )
     agent = AVQSarsa(env, value_trigger=None, rho=0.01, merge_every=1, merge_age=0, q_init=0.0, seed=0)
     agent.learn(total_episodes=1)
     assert agent.scale_.tolist() == [2.0, 1.0]
@@ -102,8 +108,9 @@ def test_avq_learns_cartpole_without_obs_bounds():
     factor = np.array(agent.get_params()["scale_factor"])  # (CartPole-v1's entry: the pole's dimensions at 0.5)
     assert factor.tolist() == [1.0, 1.0, 0.5, 0.5]
     bounded = [0, 2]  # the position and the angle have finite bounds; the velocities do not
-    assert np.array_equal(agent.scale_[bounded],
-                          ((space.high.astype(float) - space.low.astype(float)) * factor)[bounded])
+    assert np.array_equal(
+        agent.scale_[bounded], ((space.high.astype(float) - space.low.astype(float)) * factor)[bounded]
+    )
     seen = np.array(env.seen)
     assert len(seen) < 1000  # all within the warm-up (scale_warmup 1000)
     assert agent.scale_[[1, 3]] == pytest.approx(4 * seen[:, [1, 3]].std(axis=0) * factor[[1, 3]], rel=1e-12)
@@ -126,7 +133,9 @@ def test_the_estimate_is_saved_and_resumed_exactly(tmp_path, first):
 def test_given_bounds_win_over_the_estimate():
     agent = make_agent("avq-sarsa", "CartPole-v1", seed=0, obs_bounds=CARTPOLE_BOUNDS).learn(total_episodes=5)
     assert agent.scale_.tolist() == [4.8, 6.0, 0.42, 7.0]
-    partly = make_agent("avq-sarsa", "CartPole-v1", seed=0, obs_bounds=[None, [-3, 3], None, None]).learn(total_episodes=5)
+    partly = make_agent("avq-sarsa", "CartPole-v1", seed=0, obs_bounds=[None, [-3, 3], None, None]).learn(
+        total_episodes=5
+    )
     assert partly.scale_[1] == 6.0 and partly.scale_[3] not in (1.0, 7.0)
 
 
@@ -155,8 +164,9 @@ def test_spread_estimates_every_dimension_but_those_obs_bounds_bounds(scripted):
     agent.learn(total_episodes=1)
     assert agent.scale_ == pytest.approx([4 * np.std([0.0, 0.5, 0.0]), 4 * np.std([0.0, 2.0, -1.0])], rel=1e-12)
     # obs_bounds wins for the dimension it bounds; the others are estimated.
-    given = AVQSarsa(env, scale="spread", obs_bounds=[[-3.0, 3.0], None], scale_warmup=3, value_trigger=None,
-                     merge_every=0, seed=0).learn(total_episodes=1)
+    given = AVQSarsa(
+        env, scale="spread", obs_bounds=[[-3.0, 3.0], None], scale_warmup=3, value_trigger=None, merge_every=0, seed=0
+    ).learn(total_episodes=1)
     assert given.scale_[0] == 6.0 and given.scale_[1] == pytest.approx(4 * np.std([0.0, 2.0, -1.0]), rel=1e-12)
     with pytest.raises(ValueError, match="scale must be 'auto', 'spread', None"):
         AVQSarsa(env, scale="wide")
@@ -181,8 +191,15 @@ def test_scale_factor_multiplies_the_scale_whatever_its_source(scripted, cls, tm
     assert loaded.get_params()["scale_factor"] == [3.0, 0.5] and np.array_equal(loaded.scale_, agent.scale_)
 
 
-@pytest.mark.parametrize("bad, what", [([1.0, 2.0, 3.0], "a number or 2 numbers"), ([1.0, 0.0], "dimension 1 has 0.0"),
-                                       (np.inf, "dimension 0 has inf"), ("wide", "a number or 2 numbers")])
+@pytest.mark.parametrize(
+    "bad, what",
+    [
+        ([1.0, 2.0, 3.0], "a number or 2 numbers"),
+        ([1.0, 0.0], "dimension 1 has 0.0"),
+        (np.inf, "dimension 0 has inf"),
+        ("wide", "a number or 2 numbers"),
+    ],
+)
 def test_a_bad_scale_factor_gets_a_clear_error(scripted, bad, what):
     env = half_bounded(scripted, [((0.0, 0.0), [step(0.5, 2.0, end=True)])])
     for cls in (AVQSarsa, avq.PlanningAVQ):

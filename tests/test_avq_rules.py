@@ -19,14 +19,26 @@ NO = False
 
 
 def agent_for(episodes, **kw):
-    params = dict(alpha=0.5, lam=0.7, gamma=1.0, epsilon=0.0, d_min=1.0, rho=0.0, chi=-4.0,
-                  q_init=0.0, merge_every=0, scale=1.0, seed=0)
+    params = dict(
+        alpha=0.5,
+        lam=0.7,
+        gamma=1.0,
+        epsilon=0.0,
+        d_min=1.0,
+        rho=0.0,
+        chi=-4.0,
+        q_init=0.0,
+        merge_every=0,
+        scale=1.0,
+        seed=0,
+    )
     params.update(kw)
     env = ScriptedEnv(episodes)
     return AVQSarsa(env, **params), env
 
 
 # -- SPEC §3: growing ---------------------------------------------------------------------
+
 
 def test_first_vector_is_the_first_observation_with_q_init():
     agent, env = agent_for([((1.5, -2.0), [((1.5, -2.0), -1, True, NO, NO)])], q_init=3.0)
@@ -129,6 +141,7 @@ def test_max_cells_refuses_appends():
 
 # -- SPEC §4: merging -----------------------------------------------------------------------
 
+
 def _two_cell_agent(rho, merge_every=1):
     # Episode 1 appends (3, 0) with Q[1] = [0, 0] except chi = -4 at the bumping action;
     # Q[0, a] = 0 + 0.5 * (-10 + 0 - 0) = -5.  Profiles: Q[0] = (-5 at a, 0), Q[1] = (-4 at a, 0):
@@ -214,6 +227,7 @@ def test_merged_profile_averages_the_pair_and_keeps_the_rest():
 
 # -- SPEC §2, §5: acting and learning ---------------------------------------------------------
 
+
 def test_two_transition_episode_by_hand():
     # alpha 0.5, lambda 0.7, gamma 0.9, chi -5, d_min 1.
     # T1 from cell 0 with action a0: (0.5, 0) r -1, then a bump at (3, 0) r -10.
@@ -228,7 +242,7 @@ def test_two_transition_episode_by_hand():
     a0, a0_again, a1 = env.actions[0]
     assert a0_again == a0 and a1 == 1 - a0
     q = np.zeros((2, 2))
-    q[0, a0] = -5 + 0.5 * 10 * (0.9 ** 2 * 0.7)
+    q[0, a0] = -5 + 0.5 * 10 * (0.9**2 * 0.7)
     q[1, a0] = -5.0
     q[1, a1] = 5.0
     assert np.allclose(agent.q_, q, rtol=0, atol=1e-12)
@@ -318,8 +332,17 @@ def test_a_decision_is_repeated_until_the_cell_changes():
     # Cells at (0,0) and (10,0) exist after episode 1. Episode 2: three steps inside cell 0, then into
     # cell 1, one more step there and the goal: exactly two decisions.
     ep1 = ((0, 0), [((10, 0), -10, NO, True, True)])
-    ep2 = ((0, 0), [((1, 0), -1, NO, NO, NO), ((2, 0), -1, NO, NO, NO), ((3, 0), -1, NO, NO, NO),
-                    ((6, 0), -1, NO, NO, NO), ((7, 0), -1, NO, NO, NO), ((8, 0), 10, True, NO, NO)])
+    ep2 = (
+        (0, 0),
+        [
+            ((1, 0), -1, NO, NO, NO),
+            ((2, 0), -1, NO, NO, NO),
+            ((3, 0), -1, NO, NO, NO),
+            ((6, 0), -1, NO, NO, NO),
+            ((7, 0), -1, NO, NO, NO),
+            ((8, 0), 10, True, NO, NO),
+        ],
+    )
     agent, env = agent_for([ep1, ep2], epsilon=0.3, seed=3)
     agent.learn(total_episodes=2)
     acts = env.actions[1]
@@ -328,6 +351,7 @@ def test_a_decision_is_repeated_until_the_cell_changes():
 
 
 # -- reward-jump trigger (for tasks without collisions) ----------------------------------------
+
 
 def test_reward_jump_appends_the_new_observation_inheriting_the_current_cell():
     # Steps: (0.5, 0) r -1, (3, 0) r -7 (a jump of 6 >= 5, no collision), then terminal at (3.2, 0) r 0.
@@ -357,8 +381,9 @@ def test_reward_jump_below_threshold_within_d_min_or_on_a_collision_does_not_app
     agent.learn(total_episodes=1)
     assert agent.n_cells == 1
     # A collision is handled by the collision rule alone (chi within d_min), not by the reward trigger.
-    agent, _ = agent_for([((0, 0), [((0.5, 0), -1, NO, NO, NO), ((0.6, 0), -10, NO, True, True)])],
-                         reward_trigger=1.0, d_min=1.0)
+    agent, _ = agent_for(
+        [((0, 0), [((0.5, 0), -1, NO, NO, NO), ((0.6, 0), -10, NO, True, True)])], reward_trigger=1.0, d_min=1.0
+    )
     agent.learn(total_episodes=1)
     assert agent.n_cells == 1
 
@@ -374,11 +399,14 @@ def test_merge_age_keeps_young_cells_apart():
     assert agent.n_cells == 1 and agent.history_[1]["merges"] == 1
 
 
-@pytest.mark.parametrize(("q1", "same_action_guard", "merged"), [
-    ([-1.0, -1.2], True, True),    # both prefer action 0: the guard lets them merge
-    ([-1.2, -1.0], True, False),   # cell 0 prefers 0, cell 1 prefers 1: the guard keeps them apart
-    ([-1.2, -1.0], False, True),   # the paper merges on the profile difference alone
-])
+@pytest.mark.parametrize(
+    ("q1", "same_action_guard", "merged"),
+    [
+        ([-1.0, -1.2], True, True),  # both prefer action 0: the guard lets them merge
+        ([-1.2, -1.0], True, False),  # cell 0 prefers 0, cell 1 prefers 1: the guard keeps them apart
+        ([-1.2, -1.0], False, True),  # the paper merges on the profile difference alone
+    ],
+)
 def test_merge_same_action_guard(q1, same_action_guard, merged):
     from avq.agents.avq_sarsa import episode_end
 
@@ -386,8 +414,8 @@ def test_merge_same_action_guard(q1, same_action_guard, merged):
     agent, _ = agent_for([ep], rho=100.0, merge_every=0, merge_same_action=same_action_guard)
     agent.learn(total_episodes=1)
     assert agent.n_cells == 2
-    agent._Q[0, :2] = [-1.0, -1.1]          # greedy action 0
-    agent._Q[1, :2] = q1                     # msd with row 0 is at most 0.02 < rho
+    agent._Q[0, :2] = [-1.0, -1.1]  # greedy action 0
+    agent._Q[1, :2] = q1  # msd with row 0 is at most 0.02 < rho
     n = episode_end.merge_pass(*agent._state()[:10])
     assert (n == 1) == merged and agent.n_cells == (1 if merged else 2)
     if merged:
@@ -395,6 +423,7 @@ def test_merge_same_action_guard(q1, same_action_guard, merged):
 
 
 # -- beyond the paper: collision split and merging on ties -------------------------------------
+
 
 @pytest.mark.parametrize("split", [False, True])
 def test_collision_split_keeps_a_greedy_action_for_the_rest_of_the_cell(split):
@@ -457,6 +486,7 @@ def test_merge_pairs_nearest_pairs_closest_first_mutual_or_not():
     assert nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1], [2, 3]]
     # The paper's rule pairs only (0, 1): 2's nearest (1) is not mutual.
     from avq.quantizer import mutual_nearest_pairs_kernel
+
     assert mutual_nearest_pairs_kernel(pts, 4, np.ones(2)).tolist() == [[0, 1]]
     with pytest.raises(ValueError, match="merge_pairs must be one of"):
         agent_for([((0, 0), [((0, 0), -1, True, NO, NO)])], merge_pairs="closest")
@@ -527,8 +557,12 @@ def test_cycle_split_needs_greedy_decisions():
 def test_adapt_rate_moves_the_cell_vector_toward_each_observation_but_not_on_collisions():
     # y_0 = (0, 0); rate 0.5: (0.2, 0) moves it to 0.1, (0.4, 0) to 0.25; the bump at (1, 0) (within
     # d_min 1 of y_0, chi for the cell) leaves it; the terminal (0.05, 0.5) moves it to (0.15, 0.25).
-    steps = [((0.2, 0), -1, NO, NO, NO), ((0.4, 0), -1, NO, NO, NO), ((1.0, 0), -1, NO, NO, True),
-             ((0.05, 0.5), 10, True, NO, NO)]
+    steps = [
+        ((0.2, 0), -1, NO, NO, NO),
+        ((0.4, 0), -1, NO, NO, NO),
+        ((1.0, 0), -1, NO, NO, True),
+        ((0.05, 0.5), 10, True, NO, NO),
+    ]
     agent, _ = agent_for([((0, 0), steps)], adapt_rate=0.5)
     agent.learn(total_episodes=1)
     assert np.allclose(agent.codebook_, [[0.15, 0.25]])

@@ -54,11 +54,20 @@ def test_a_discrete_observation_space_points_to_tabular(cls):
 
 @pytest.mark.parametrize(
     "param,value,match",
-    [("alpha", 0.0, r"alpha must be in \(0.0, 1.0\]"), ("alpha", 1.5, "alpha"), ("lam", -0.1, "lam"),
-     ("gamma", 1.1, "gamma"), ("epsilon", 2, "epsilon"), ("q_init", float("nan"), "q_init"),
-     ("traces", "dutch", "traces"), ("seed", -3, "seed"),
-     ("obs_bounds", [(0, 1)], "obs_bounds must have 2 entries"), ("obs_bounds", [(0, 1), (1, 0)], r"obs_bounds\[1\]"),
-     ("obs_bounds", [(0, 1), "ab"], r"obs_bounds\[1\]"), ("obs_bounds", 3.0, "obs_bounds")],
+    [
+        ("alpha", 0.0, r"alpha must be in \(0.0, 1.0\]"),
+        ("alpha", 1.5, "alpha"),
+        ("lam", -0.1, "lam"),
+        ("gamma", 1.1, "gamma"),
+        ("epsilon", 2, "epsilon"),
+        ("q_init", float("nan"), "q_init"),
+        ("traces", "dutch", "traces"),
+        ("seed", -3, "seed"),
+        ("obs_bounds", [(0, 1)], "obs_bounds must have 2 entries"),
+        ("obs_bounds", [(0, 1), (1, 0)], r"obs_bounds\[1\]"),
+        ("obs_bounds", [(0, 1), "ab"], r"obs_bounds\[1\]"),
+        ("obs_bounds", 3.0, "obs_bounds"),
+    ],
 )
 @pytest.mark.parametrize("cls", [GridSarsa, TileSarsa])
 def test_bad_shared_parameters_name_the_parameter(cls, param, value, match):
@@ -68,9 +77,13 @@ def test_bad_shared_parameters_name_the_parameter(cls, param, value, match):
 
 @pytest.mark.parametrize(
     "param,value,match",
-    [("bins", 0, "bins"), ("bins", 2.5, "bins"), ("bins", [10, 0], "bins"),
-     ("bins", [4, 4, 4], "bins must be an int or 2"),
-     ("bins", 10_000, "bins gives 100000000 cells")],
+    [
+        ("bins", 0, "bins"),
+        ("bins", 2.5, "bins"),
+        ("bins", [10, 0], "bins"),
+        ("bins", [4, 4, 4], "bins must be an int or 2"),
+        ("bins", 10_000, "bins gives 100000000 cells"),
+    ],
 )
 def test_bad_grid_parameters_name_the_parameter(param, value, match):
     with pytest.raises(ValueError, match=match):
@@ -79,9 +92,14 @@ def test_bad_grid_parameters_name_the_parameter(param, value, match):
 
 @pytest.mark.parametrize(
     "param,value,match",
-    [("n_tilings", 0, "n_tilings"), ("n_tilings", 2.0, "n_tilings"), ("tiles_per_dim", 0, "tiles_per_dim"),
-     ("tiles_per_dim", [8], "tiles_per_dim must be an int or 2"), ("iht_size", 0, "iht_size"),
-     ("iht_size", 4, r"iht_size must be at least n_tilings \(8\)")],
+    [
+        ("n_tilings", 0, "n_tilings"),
+        ("n_tilings", 2.0, "n_tilings"),
+        ("tiles_per_dim", 0, "tiles_per_dim"),
+        ("tiles_per_dim", [8], "tiles_per_dim must be an int or 2"),
+        ("iht_size", 0, "iht_size"),
+        ("iht_size", 4, r"iht_size must be at least n_tilings \(8\)"),
+    ],
 )
 def test_bad_tile_parameters_name_the_parameter(param, value, match):
     with pytest.raises(ValueError, match=match):
@@ -94,14 +112,16 @@ def test_bad_tile_parameters_name_the_parameter(param, value, match):
 def test_grid_bin_index_by_hand_with_clipping(scripted):
     # [-10, 10]^2 in 4 x 5 bins: widths 5 and 4; flat index = 5 k0 + k1.
     agent = GridSarsa(scripted([], dims=2), bins=[4, 5])
-    obs = np.array([
-        [-10.0, -10.0],  # (0, 0)
-        [-4.9, 3.9],  # 5.1 / 5 -> 1, 13.9 / 4 -> 3
-        [0.0, 0.0],  # 10 / 5 = 2, 10 / 4 = 2.5 -> (2, 2)
-        [7.4, -6.1],  # 17.4 / 5 -> 3, 3.9 / 4 -> 0
-        [10.0, 10.0],  # the upper bound is in the last bin: (3, 4)
-        [-50.0, 99.0],  # clipped to the edge bins: (0, 4)
-    ])
+    obs = np.array(
+        [
+            [-10.0, -10.0],  # (0, 0)
+            [-4.9, 3.9],  # 5.1 / 5 -> 1, 13.9 / 4 -> 3
+            [0.0, 0.0],  # 10 / 5 = 2, 10 / 4 = 2.5 -> (2, 2)
+            [7.4, -6.1],  # 17.4 / 5 -> 3, 3.9 / 4 -> 0
+            [10.0, 10.0],  # the upper bound is in the last bin: (3, 4)
+            [-50.0, 99.0],  # clipped to the edge bins: (0, 4)
+        ]
+    )
     assert agent.cells(obs).tolist() == [0, 8, 12, 15, 19, 4]
 
 
@@ -148,8 +168,19 @@ def _tile_agent(scripted, traces, same_action):
     """The scripted tile episode with the first seed whose two tie-breaks agree (or differ)."""
     for seed in range(50):
         env = scripted([TILE_EPISODE], dims=1)
-        agent = TileSarsa(env, n_tilings=2, tiles_per_dim=2, iht_size=16, alpha=0.5, lam=0.8, gamma=0.9,
-                          epsilon=0.0, q_init=1.0, traces=traces, seed=seed)
+        agent = TileSarsa(
+            env,
+            n_tilings=2,
+            tiles_per_dim=2,
+            iht_size=16,
+            alpha=0.5,
+            lam=0.8,
+            gamma=0.9,
+            epsilon=0.0,
+            q_init=1.0,
+            traces=traces,
+            seed=seed,
+        )
         agent.learn(total_timesteps=1)
         a0 = env.actions[0][0]
         agent.learn(total_timesteps=1)
@@ -330,10 +361,14 @@ def test_tile_sarsa_solves_mountain_car_like_the_book(seed):
     assert steps[-10:].mean() < steps[:10].mean()
 
 
-@pytest.mark.parametrize("make", [
-    lambda env: avq.TabularSarsa(env, alpha=0.5, epsilon=0.0, seed=0),
-    lambda env: avq.GridSarsa(env, bins=20, alpha=0.5, epsilon=0.0, seed=0),
-], ids=["tabular", "grid"])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda env: avq.TabularSarsa(env, alpha=0.5, epsilon=0.0, seed=0),
+        lambda env: avq.GridSarsa(env, bins=20, alpha=0.5, epsilon=0.0, seed=0),
+    ],
+    ids=["tabular", "grid"],
+)
 def test_table_agents_make_a_row_for_the_terminal_observation_and_never_learn_from_it(make):
     # Start (0, 0), one step to (1, 0) with r -1, then the terminal step to (9, 0) with r +10.
     # Both agents run the same step (avq.agents._td.table_step): every observation reached gets a row,
@@ -348,8 +383,11 @@ def test_table_agents_make_a_row_for_the_terminal_observation_and_never_learn_fr
     agent.learn(total_episodes=1)
     assert agent.n_cells == 3 and agent.history_[0]["appends"] == 3
     a0, a1 = env.actions[0]
-    cells = np.arange(3) if isinstance(agent, avq.TabularSarsa) else agent.cells(
-        np.array([[0.0, 0.0], [1.0, 0.0], [9.0, 0.0]]))
+    cells = (
+        np.arange(3)
+        if isinstance(agent, avq.TabularSarsa)
+        else agent.cells(np.array([[0.0, 0.0], [1.0, 0.0], [9.0, 0.0]]))
+    )
     q = agent.q_[cells]
     assert q[0, a0] == pytest.approx(3.0) and q[1, a1] == 5.0
     assert q[2].tolist() == [0.0, 0.0]

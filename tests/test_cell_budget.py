@@ -40,8 +40,27 @@ def test_on_a_task_that_asks_for_more_the_default_budget_holds_and_counts_what_i
 
 def test_progress_csv_shows_the_cells_and_the_refused_growth_of_every_episode(tmp_path):
     out = tmp_path / "run"
-    assert main(["train", "--env", "CartPole-v1", "--agent", "avq", "--episodes", "20", "--seed", "0",
-                 "--no-progress", "--out", str(out), "--set", "max_cells=3"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "CartPole-v1",
+                "--agent",
+                "avq",
+                "--episodes",
+                "20",
+                "--seed",
+                "0",
+                "--no-progress",
+                "--out",
+                str(out),
+                "--set",
+                "max_cells=3",
+            ]
+        )
+        == 0
+    )
     with open(out / "progress.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     h = avq.load(out / "model.zip").episode_history()

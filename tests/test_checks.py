@@ -51,11 +51,14 @@ class AcceptsAnyAlpha(TabularSarsa):
         self.alpha = alpha
 
 
-@pytest.mark.parametrize(("cls", "check"), [
-    (ForgetsValues, "save_load"),
-    (ForgetsWhereItStopped, "additive_learn"),
-    (AcceptsAnyAlpha, "parameters"),
-])
+@pytest.mark.parametrize(
+    ("cls", "check"),
+    [
+        (ForgetsValues, "save_load"),
+        (ForgetsWhereItStopped, "additive_learn"),
+        (AcceptsAnyAlpha, "parameters"),
+    ],
+)
 def test_the_check_catches_broken_agents(cls, check):
     with pytest.raises(AssertionError, match=f"failed the '{check}' check"):
         check_agent(cls, "avq/GridMaze-v0")

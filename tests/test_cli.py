@@ -47,8 +47,27 @@ def test_reproduce_with_a_layout_file_and_fixed_start(tmp_path):
     lay = tmp_path / "maze.txt"
     lay.write_text("#######\n#S...G#\n#.....#\n#######\n")
     out = tmp_path / "o"
-    assert main(["reproduce", "--layout", str(lay), "--seeds", "1", "--trials", "5", "--start", "fixed",
-                 "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--layout",
+                str(lay),
+                "--seeds",
+                "1",
+                "--trials",
+                "5",
+                "--start",
+                "fixed",
+                "--out",
+                str(out),
+                "--jobs",
+                "1",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert json.loads((out / "summary.json").read_text())["n_states"] == 10
 
 
@@ -66,8 +85,11 @@ def test_reproduce_with_a_layout_file_and_fixed_start(tmp_path):
 )
 @pytest.mark.parametrize("run_cli", CLI_RUNNERS)
 def test_user_mistakes_exit_2_with_one_line(args, needle, tmp_path, run_cli):
-    proc = run_cli(*args, "--out", str(tmp_path / "x"), cwd=tmp_path) if args[0] == "reproduce" else run_cli(
-        *args, cwd=tmp_path)
+    proc = (
+        run_cli(*args, "--out", str(tmp_path / "x"), cwd=tmp_path)
+        if args[0] == "reproduce"
+        else run_cli(*args, cwd=tmp_path)
+    )
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
@@ -78,8 +100,22 @@ def test_user_mistakes_exit_2_with_one_line(args, needle, tmp_path, run_cli):
 def test_fixed_start_without_S_is_a_usage_error(tmp_path):
     lay = tmp_path / "m.txt"
     lay.write_text("....G\n.....\n")
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", "reproduce", "--layout", str(lay), "--start", "fixed",
-                           "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "avq.cli",
+            "reproduce",
+            "--layout",
+            str(lay),
+            "--start",
+            "fixed",
+            "--out",
+            str(tmp_path / "o"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2 and "no 'S'" in proc.stderr and "Traceback" not in proc.stderr
 
 

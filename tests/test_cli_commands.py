@@ -45,8 +45,11 @@ def test_a_partial_reproduction_replaces_the_earlier_one_whole(reproduced, tmp_p
     args = ["reproduce", "--agents", "tabular", "--seeds", "1", "--trials", "10", "--jobs", "1", "--no-progress"]
     assert main(args + ["--out", str(out)]) == 0
     assert main(args + ["--out", str(tmp_path / "fresh")]) == 0
-    assert set(files(out)) == set(files(tmp_path / "fresh")) == {
-        "summary.json", "partition.png", "learning_curve.png", "models/tabular__seed0.zip"}
+    assert (
+        set(files(out))
+        == set(files(tmp_path / "fresh"))
+        == {"summary.json", "partition.png", "learning_curve.png", "models/tabular__seed0.zip"}
+    )
     assert list(json.loads((out / "summary.json").read_text())["agents"]) == ["tabular"]
     left = sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".lock"))  # (the locks stay)
     assert left == ["fresh", "out"]  # no staging directory left
@@ -63,8 +66,9 @@ def test_a_reproduction_that_stops_leaves_the_directory_as_it_was(reproduced, tm
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        reproduce(seeds=[0, 1, 2], trials=12, agents=["avq-paper", "tabular"], out=out, n_jobs=1, progress=False,
-                  log=stop)
+        reproduce(
+            seeds=[0, 1, 2], trials=12, agents=["avq-paper", "tabular"], out=out, n_jobs=1, progress=False, log=stop
+        )
     assert files(out) == before
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".lock")) == ["out"]
 
@@ -88,8 +92,23 @@ def test_reproduce_refuses_a_directory_with_other_files(tmp_path, capsys):
 def cliff_run(tmp_path_factory):
     """A tabular run on CliffWalking-v1 (no time limit) trained for 3 episodes: its greedy policy loops forever."""
     out = tmp_path_factory.mktemp("cliff") / "run"
-    assert main(["train", "--env", "CliffWalking-v1", "--agent", "tabular", "--episodes", "3", "--out", str(out),
-                 "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "CliffWalking-v1",
+                "--agent",
+                "tabular",
+                "--episodes",
+                "3",
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -102,14 +121,31 @@ def test_evaluate_reports_the_episodes_cut_by_the_step_cap(cliff_run, capsys):
     assert main(["evaluate", str(cliff_run), "--episodes", "3", "--max-steps", "300"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("tabular on CliffWalking-v1: return -300.00 ± 0.00 over 3 episodes, 300.0 steps")
-    assert lines[1] == ("3 of 3 episodes did not end within --max-steps 300 and were cut there "
-                        "(their return is that of the first 300 steps)")
+    assert lines[1] == (
+        "3 of 3 episodes did not end within --max-steps 300 and were cut there "
+        "(their return is that of the first 300 steps)"
+    )
 
 
 def test_an_episode_that_the_environment_ends_is_not_counted_as_capped(tmp_path, capsys):
     out = tmp_path / "maze"
-    assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "2", "--out", str(out),
-                 "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "avq/GridMaze-v0",
+                "--agent",
+                "tabular",
+                "--episodes",
+                "2",
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     # The maze's own limit is 100 steps: an episode it truncates at 100 was not cut by --max-steps 100.
     assert main(["evaluate", str(out), "--max-steps", "100", "--json"]) == 0
@@ -117,11 +153,16 @@ def test_an_episode_that_the_environment_ends_is_not_counted_as_capped(tmp_path,
     assert report["capped"] == 0 and report["mean_steps"] == 100.0
     assert main(["evaluate", str(out), "--max-steps", "100"]) == 0
     assert "cut" not in capsys.readouterr().out
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", "evaluate", str(out), "--max-steps", "0"],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "avq.cli", "evaluate", str(out), "--max-steps", "0"], capture_output=True, text=True
+    )
     assert proc.returncode == 2 and "--max-steps must be >= 1" in proc.stderr
-    assert "--max-steps N" in subprocess.run([sys.executable, "-m", "avq.cli", "evaluate", "--help"],
-                                             capture_output=True, text=True).stdout
+    assert (
+        "--max-steps N"
+        in subprocess.run(
+            [sys.executable, "-m", "avq.cli", "evaluate", "--help"], capture_output=True, text=True
+        ).stdout
+    )
 
 
 # Slow (100,000 steps); the fast run keeps the capped evaluation above and the progress bars of learn and train.
@@ -154,12 +195,20 @@ def test_evaluate_takes_a_model_file(reproduced, capsys):
     run = reproduced.parent / "as-run"
     run.mkdir()
     shutil.copy(model, run / "model.zip")
-    (run / "config.yml").write_text(yaml.safe_dump({"env": "avq/GridMaze-v0", "agent": "avq-paper", "env_kwargs": {
-        "layout": avq.load(model).env.spec.kwargs["layout"], "start": "random"}}))
+    (run / "config.yml").write_text(
+        yaml.safe_dump(
+            {
+                "env": "avq/GridMaze-v0",
+                "agent": "avq-paper",
+                "env_kwargs": {"layout": avq.load(model).env.spec.kwargs["layout"], "start": "random"},
+            }
+        )
+    )
     assert main(["evaluate", str(run), "--json"]) == 0
     as_run = json.loads(capsys.readouterr().out)
     assert {k: v for k, v in as_run.items() if k not in ("run", "agent")} == {
-        k: v for k, v in report.items() if k not in ("run", "agent")}
+        k: v for k, v in report.items() if k not in ("run", "agent")
+    }
 
 
 # -- 13 and 14: timings without the compilation, progress bars -------------------------------------------------
@@ -169,9 +218,11 @@ def test_evaluate_takes_a_model_file(reproduced, capsys):
 def fresh_process_reproduction(tmp_path_factory):
     """A reproduction in a new process (whose kernels are not loaded yet), with its progress bar."""
     out = tmp_path_factory.mktemp("fresh") / "out"
-    code = ("import json, sys; from avq.reproduce import reproduce; "
-            f"s = reproduce(seeds=[0, 1, 2], trials=20, agents=['avq-paper', 'tabular'], out={str(out)!r}, "
-            "n_jobs=1, progress=True, log=None); print(json.dumps(s))")
+    code = (
+        "import json, sys; from avq.reproduce import reproduce; "
+        f"s = reproduce(seeds=[0, 1, 2], trials=20, agents=['avq-paper', 'tabular'], out={str(out)!r}, "
+        "n_jobs=1, progress=True, log=None); print(json.dumps(s))"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout), proc.stderr
@@ -203,8 +254,25 @@ def test_the_quick_start_bar_stays_and_shows_the_end(capsys):
 
 def test_a_resumed_run_counts_its_bar_from_the_episodes_done(tmp_path, capsys):
     run = tmp_path / "run"
-    assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "20",
-                 "--checkpoint-every", "10", "--out", str(run), "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "avq/GridMaze-v0",
+                "--agent",
+                "tabular",
+                "--episodes",
+                "20",
+                "--checkpoint-every",
+                "10",
+                "--out",
+                str(run),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     # As if stopped after the checkpoint at episode 20 of 30.
     config = yaml.safe_load((run / "config.yml").read_text())
     (run / "config.yml").write_text(yaml.safe_dump({**config, "episodes": 30}, sort_keys=False))
@@ -221,8 +289,7 @@ def test_a_resumed_run_counts_its_bar_from_the_episodes_done(tmp_path, capsys):
 
 def help_text(command):
     env = {**os.environ, "COLUMNS": "1000"}  # one line per option: names are not wrapped at their hyphens
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", command, "--help"], capture_output=True, text=True,
-                          env=env)
+    proc = subprocess.run([sys.executable, "-m", "avq.cli", command, "--help"], capture_output=True, text=True, env=env)
     assert proc.returncode == 0, proc.stderr
     return proc.stdout
 
@@ -257,8 +324,21 @@ def test_env_kwargs_with_a_hash_says_it_starts_a_comment_and_how_to_quote(tmp_pa
 
 def test_an_empty_value_is_named_as_empty(tmp_path, capsys):
     for flag in ("--env-kwargs", "--set"):
-        assert main(["train", "--env", "avq/GridMaze-v0", flag, "layout=" if flag == "--env-kwargs" else "alpha=",
-                     "--out", str(tmp_path / "x"), "--no-progress"]) == 2
+        assert (
+            main(
+                [
+                    "train",
+                    "--env",
+                    "avq/GridMaze-v0",
+                    flag,
+                    "layout=" if flag == "--env-kwargs" else "alpha=",
+                    "--out",
+                    str(tmp_path / "x"),
+                    "--no-progress",
+                ]
+            )
+            == 2
+        )
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{flag} " in err and ": the value is empty" in err and "=null" in err
     assert not (tmp_path / "x").exists()

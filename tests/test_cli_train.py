@@ -21,9 +21,28 @@ def run_cli(*args, cwd=None):
 
 def test_train_writes_the_run_directory_and_evaluate_reads_it(tmp_path, capsys):
     out = tmp_path / "run"
-    code = main(["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "30", "--seed", "3",
-                 "--out", str(out), "--set", "alpha=0.3", "--set", "epsilon=0.1", "--env-kwargs", "start=fixed",
-                 "--no-progress"])
+    code = main(
+        [
+            "train",
+            "--env",
+            "avq/GridMaze-v0",
+            "--agent",
+            "avq-paper",
+            "--episodes",
+            "30",
+            "--seed",
+            "3",
+            "--out",
+            str(out),
+            "--set",
+            "alpha=0.3",
+            "--set",
+            "epsilon=0.1",
+            "--env-kwargs",
+            "start=fixed",
+            "--no-progress",
+        ]
+    )
     assert code == 0
     assert "avq-paper on avq/GridMaze-v0 (seed 3): 30 episodes" in capsys.readouterr().out
     config = yaml.safe_load((out / "config.yml").read_text())
@@ -50,27 +69,79 @@ def test_train_writes_the_run_directory_and_evaluate_reads_it(tmp_path, capsys):
 
 
 def test_train_says_which_defaults_it_took(tmp_path, capsys):
-    assert main(["train", "--env", "avq/GridMaze-v0", "--episodes", "3", "--out", str(tmp_path / "maze"),
-                 "--no-progress"]) == 0
+    assert (
+        main(["train", "--env", "avq/GridMaze-v0", "--episodes", "3", "--out", str(tmp_path / "maze"), "--no-progress"])
+        == 0
+    )
     assert capsys.readouterr().out.splitlines()[0] == (
         "agent avq on avq/GridMaze-v0: the avq/GridMaze-v0 defaults of avq "
-        "(avq/agents/defaults/avq.yaml, entry 'avq/GridMaze-v0'); explicit: none")
-    assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "d_min=0.2", "--out",
-                 str(tmp_path / "car"), "--no-progress"]) == 0
+        "(avq/agents/defaults/avq.yaml, entry 'avq/GridMaze-v0'); explicit: none"
+    )
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "MountainCar-v0",
+                "--timesteps",
+                "250",
+                "--set",
+                "d_min=0.2",
+                "--out",
+                str(tmp_path / "car"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert capsys.readouterr().out.splitlines()[0] == (
         "agent avq on MountainCar-v0: the general defaults of avq (avq/agents/defaults/avq.yaml, entry '*'); "
-        "explicit: d_min=0.2")
+        "explicit: d_min=0.2"
+    )
     # avq's class depends on the task: a parameter of the maze agent is refused elsewhere, naming the class.
-    assert main(["train", "--env", "MountainCar-v0", "--timesteps", "250", "--set", "alpha=0.2", "--out",
-                 str(tmp_path / "bad"), "--no-progress"]) == 2
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "MountainCar-v0",
+                "--timesteps",
+                "250",
+                "--set",
+                "alpha=0.2",
+                "--out",
+                str(tmp_path / "bad"),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     assert capsys.readouterr().err.startswith(
-        "avq: error: unknown parameter 'alpha' for agent 'avq' on MountainCar-v0 (class PlanningAVQ); its parameters: ")
+        "avq: error: unknown parameter 'alpha' for agent 'avq' on MountainCar-v0 (class PlanningAVQ); its parameters: "
+    )
 
 
 def test_rerunning_from_config_gives_the_same_model(tmp_path):
     first = tmp_path / "a"
-    assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "20", "--out",
-                 str(first), "--set", "d_min=1.5", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "avq/GridMaze-v0",
+                "--agent",
+                "avq-paper",
+                "--episodes",
+                "20",
+                "--out",
+                str(first),
+                "--set",
+                "d_min=1.5",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     second = tmp_path / "b"
     assert main(["train", "--config", str(first / "config.yml"), "--out", str(second), "--no-progress"]) == 0
     a, b = avq.load(first / "model.zip"), avq.load(second / "model.zip")
@@ -79,16 +150,43 @@ def test_rerunning_from_config_gives_the_same_model(tmp_path):
 
 def test_train_with_timesteps_and_a_gymnasium_task(tmp_path):
     out = tmp_path / "mc"
-    assert main(["train", "--env", "MountainCar-v0", "--agent", "avq-paper", "--timesteps", "450", "--out", str(out),
-                 "--env-kwargs", "max_episode_steps=150", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "MountainCar-v0",
+                "--agent",
+                "avq-paper",
+                "--timesteps",
+                "450",
+                "--out",
+                str(out),
+                "--env-kwargs",
+                "max_episode_steps=150",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     model = avq.load(out / "model.zip", env=avq.runs.make_env("MountainCar-v0", {"max_episode_steps": 150}))
     assert model.num_timesteps == 450 and model.num_episodes == 3
 
 
 def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
     out = tmp_path / "r"
-    args = ["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "2", "--out", str(out),
-            "--no-progress"]
+    args = [
+        "train",
+        "--env",
+        "avq/GridMaze-v0",
+        "--agent",
+        "tabular",
+        "--episodes",
+        "2",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     assert main(args) == 0
     before = (out / "model.zip").read_bytes()
     proc = run_cli(*args)
@@ -102,7 +200,10 @@ def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
     [
         (["train", "--env", "Nope-v9"], "unknown environment 'Nope-v9'"),
         (["train", "--env", "CartPole-v1", "--agent", "bogus"], "unknown agent 'bogus'"),
-        (["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--set", "alpah=0.1"], "unknown parameter 'alpah'"),
+        (
+            ["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--set", "alpah=0.1"],
+            "unknown parameter 'alpah'",
+        ),
         (["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--set", "alpha=7"], "alpha must be in"),
         (["train", "--env", "avq/GridMaze-v0", "--set", "alpha"], "key=value"),
         (["train", "--env", "avq/GridMaze-v0", "--env-kwargs", "layout=nowhere"], "nowhere"),
@@ -174,8 +275,20 @@ def test_config_values_of_the_wrong_type(tmp_path, run_cli):
 @pytest.mark.parametrize("run_cli", CLI_RUNNERS)
 def test_resume_mistakes_exit_2_and_leave_the_run_as_it_was(tmp_path, run_cli):
     run = tmp_path / "run"
-    proc = run_cli("train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "30",
-                   "--checkpoint-every", "10", "--out", str(run), "--no-progress")
+    proc = run_cli(
+        "train",
+        "--env",
+        "avq/GridMaze-v0",
+        "--agent",
+        "tabular",
+        "--episodes",
+        "30",
+        "--checkpoint-every",
+        "10",
+        "--out",
+        str(run),
+        "--no-progress",
+    )
     assert proc.returncode == 0, proc.stderr
     (run / "model.zip").unlink()  # as if stopped after its last checkpoint
     before = {p.name: p.read_bytes() for p in run.iterdir() if p.name != ".avq.lock"}  # (the lock names its holder)
@@ -198,6 +311,23 @@ def test_resume_mistakes_exit_2_and_leave_the_run_as_it_was(tmp_path, run_cli):
 
 
 def test_the_summary_says_1_cell_not_1_cells(tmp_path, capsys):
-    assert main(["train", "--env", "CartPole-v1", "--episodes", "3", "--seed", "0", "--set", "max_cells=1",
-                 "--out", str(tmp_path / "one"), "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "CartPole-v1",
+                "--episodes",
+                "3",
+                "--seed",
+                "0",
+                "--set",
+                "max_cells=1",
+                "--out",
+                str(tmp_path / "one"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert ", 1 cell, mean return" in capsys.readouterr().out

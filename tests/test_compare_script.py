@@ -29,8 +29,11 @@ def test_steps_to_threshold_ends_at_the_first_window_whose_mean_reaches_it():
 
 
 def test_threshold_cell_counts_runs_that_never_got_there_as_more_than_their_steps():
-    rows = [{"steps_to_threshold": 1000, "env_steps": 5000}, {"steps_to_threshold": None, "env_steps": 20_000},
-            {"steps_to_threshold": 3000, "env_steps": 6000}]
+    rows = [
+        {"steps_to_threshold": 1000, "env_steps": 5000},
+        {"steps_to_threshold": None, "env_steps": 20_000},
+        {"steps_to_threshold": 3000, "env_steps": 6000},
+    ]
     # Median of 1000, 3000 and "more than 20,000": 3000; the range is that of the two runs that got there.
     assert compare.threshold_cell(rows) == "3.0k [1.0k–3.0k], 2/3"
     # Two of three never got there: the median is more than the median of the steps known (1000, 20k, 40k).
@@ -40,9 +43,27 @@ def test_threshold_cell_counts_runs_that_never_got_there_as_more_than_their_step
 
 
 def test_a_tiny_run_writes_its_rows_table_and_figure(tmp_path):
-    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",
-                          "--agents", "avq,grid", "--seeds", "2", "--scale", "0.01", "--jobs", "1",
-                          "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "compare.py"),
+            "--tasks",
+            "CartPole-v1",
+            "--agents",
+            "avq,grid",
+            "--seeds",
+            "2",
+            "--scale",
+            "0.01",
+            "--jobs",
+            "1",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert out.returncode == 0, out.stderr
     with open(tmp_path / "data" / "compare.csv") as f:
         rows = list(csv.DictReader(f))
@@ -61,9 +82,26 @@ def test_a_tiny_run_writes_its_rows_table_and_figure(tmp_path):
 @pytest.mark.slow
 def test_update_reruns_some_agents_and_keeps_the_rows_of_the_others(tmp_path):
     def compare(*args):
-        out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",
-                              "--seeds", "2", "--scale", "0.01", "--jobs", "1", "--out", str(tmp_path), *args],
-                             capture_output=True, text=True, timeout=600)
+        out = subprocess.run(
+            [
+                sys.executable,
+                str(ROOT / "benchmarks" / "compare.py"),
+                "--tasks",
+                "CartPole-v1",
+                "--seeds",
+                "2",
+                "--scale",
+                "0.01",
+                "--jobs",
+                "1",
+                "--out",
+                str(tmp_path),
+                *args,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert out.returncode == 0, out.stderr
         with open(tmp_path / "data" / "compare.csv") as f:
             return list(csv.DictReader(f))
@@ -82,8 +120,9 @@ def test_update_reruns_some_agents_and_keeps_the_rows_of_the_others(tmp_path):
     # A task new to the file: the random policy runs there too (its rows on the other task are kept).
     third = compare("--agents", "grid", "--tasks", "CartPole-v0", "--update")
     assert third[:6] == second
-    assert [(r["task"], r["agent"], r["seed"]) for r in third[6:]] == [("CartPole-v0", a, s) for a in ("grid", "random")
-                                                                      for s in "01"]
+    assert [(r["task"], r["agent"], r["seed"]) for r in third[6:]] == [
+        ("CartPole-v0", a, s) for a in ("grid", "random") for s in "01"
+    ]
     table = (tmp_path / "data" / "compare_table.md").read_text()
     assert all(f"| CartPole-v0 | {a} |" in table for a in ("grid", "random"))
     assert (tmp_path / "figures" / "compare_CartPole-v0.png").stat().st_size > 10_000
@@ -102,9 +141,26 @@ def test_set_gives_every_agent_run_a_parameter_on_top_of_the_tasks_settings():
 @pytest.mark.slow
 def test_set_is_read_as_avq_train_reads_it_and_never_writes_over_the_results(tmp_path):
     def run(*args):
-        return subprocess.run([sys.executable, str(ROOT / "benchmarks" / "compare.py"), "--tasks", "CartPole-v1",
-                               "--agents", "avq", "--seeds", "1", "--scale", "0.01", "--jobs", "1", *args],
-                              capture_output=True, text=True, timeout=600)
+        return subprocess.run(
+            [
+                sys.executable,
+                str(ROOT / "benchmarks" / "compare.py"),
+                "--tasks",
+                "CartPole-v1",
+                "--agents",
+                "avq",
+                "--seeds",
+                "1",
+                "--scale",
+                "0.01",
+                "--jobs",
+                "1",
+                *args,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
 
     bad = run("--set", "d_min", "--out", str(tmp_path))
     assert bad.returncode == 2 and "--set expects key=value, not 'd_min'" in bad.stderr

@@ -63,8 +63,7 @@ def environ(tmp_path: Path, site: Path, **extra: str) -> dict[str, str]:
 
 
 def run(code: str, env: dict[str, str], cwd: Path) -> dict:
-    out = subprocess.run([sys.executable, "-c", code], env=env, cwd=cwd, capture_output=True, text=True,
-                         timeout=600)
+    out = subprocess.run([sys.executable, "-c", code], env=env, cwd=cwd, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -189,8 +188,10 @@ def test_prune_keeps_the_most_recent_and_touches_nothing_else(tmp_path, prefix):
     # A folder used within the grace period is kept, however many are more recent.
     (tmp_path / names[4]).mkdir()
     os.utime(tmp_path / names[4], (now - 60,) * 2)
-    assert _compile_cache.prune(tmp_path, prefix, current, keep=0, grace_s=3600) == [tmp_path / names[0],
-                                                                                      tmp_path / names[1]]
+    assert _compile_cache.prune(tmp_path, prefix, current, keep=0, grace_s=3600) == [
+        tmp_path / names[0],
+        tmp_path / names[1],
+    ]
 
 
 def test_import_prunes_old_folders(tmp_path):
@@ -203,4 +204,4 @@ def test_import_prunes_old_folders(tmp_path):
     env = environ(tmp_path, site)
     out = run("import json, numba, avq; print(json.dumps({'cache_dir': numba.config.CACHE_DIR}))", env, tmp_path)
     current = Path(out["cache_dir"])
-    assert {p for p in root.iterdir()} == {current, *old[:_compile_cache.KEEP - 1]}
+    assert {p for p in root.iterdir()} == {current, *old[: _compile_cache.KEEP - 1]}

@@ -77,8 +77,11 @@ def test_episode_state_is_read_and_written_so_that_step_goes_on_from_there():
     assert robot.step(0)[3]  # truncated at its own limit
 
 
-@pytest.mark.parametrize("make", [lambda k: TimeLimit(GridMaze(), k), lambda k: TimeLimit(gym.make("avq/GridMaze-v0"), k)],
-                         ids=["bare", "around-gym-make"])
+@pytest.mark.parametrize(
+    "make",
+    [lambda k: TimeLimit(GridMaze(), k), lambda k: TimeLimit(gym.make("avq/GridMaze-v0"), k)],
+    ids=["bare", "around-gym-make"],
+)
 @pytest.mark.parametrize("limit", [7, 23])
 def test_a_time_limit_the_user_set_applies_to_fused_training(limit, make):
     runs = []

@@ -26,15 +26,27 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 TUTORIAL = DOCS / "tutorial" / "index.md"
 #: The modules of the API reference: their ``__all__`` is the public API.
-PUBLIC_MODULES = ("avq", "avq.agents", "avq.agents.callbacks", "avq.agents.registry", "avq.agents.save_util", "avq.envs", "avq.evaluation",
-                  "avq.checks", "avq.sweep", "avq.plotting")
+PUBLIC_MODULES = (
+    "avq",
+    "avq.agents",
+    "avq.agents.callbacks",
+    "avq.agents.registry",
+    "avq.agents.save_util",
+    "avq.envs",
+    "avq.evaluation",
+    "avq.checks",
+    "avq.sweep",
+    "avq.plotting",
+)
 
 
 def python_blocks(path: Path) -> list[tuple[int, str]]:
     """The ```python blocks of a Markdown file, with the line each starts on."""
     text = path.read_text(encoding="utf-8")
-    return [(text.count("\n", 0, m.start()) + 2, m.group(1))
-            for m in re.finditer(r"^```python\n(.*?)^```", text, re.M | re.S)]
+    return [
+        (text.count("\n", 0, m.start()) + 2, m.group(1))
+        for m in re.finditer(r"^```python\n(.*?)^```", text, re.M | re.S)
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -42,10 +54,18 @@ def site(tmp_path_factory) -> Path:
     """The site, built in strict mode into a temporary directory."""
     pytest.importorskip("mkdocs")
     out = tmp_path_factory.mktemp("site")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
-           "NO_MKDOCS_2_WARNING": "1"}
-    result = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
-                             "-d", str(out)], capture_output=True, text=True, env=env, cwd=ROOT)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+        "NO_MKDOCS_2_WARNING": "1",
+    }
+    result = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"), "-d", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+    )
     assert result.returncode == 0, result.stderr[-5000:]
     return out
 
@@ -55,9 +75,18 @@ def _text(page: Path) -> str:
 
 
 def test_the_site_builds_strict_with_its_sections(site):
-    for page in ("index.html", "tutorial/index.html", "reference/agents.html", "reference/cli.html",
-                 "reference/file-formats.html", "reference/api/avq.html", "reference/api/agents.html",
-                 "explanation/paper.html", "explanation/architecture.html", "results/index.html"):
+    for page in (
+        "index.html",
+        "tutorial/index.html",
+        "reference/agents.html",
+        "reference/cli.html",
+        "reference/file-formats.html",
+        "reference/api/avq.html",
+        "reference/api/agents.html",
+        "explanation/paper.html",
+        "explanation/architecture.html",
+        "results/index.html",
+    ):
         assert (site / page).is_file(), page
     assert len(list((site / "results").glob("*.html"))) >= 5
 
@@ -84,11 +113,15 @@ def test_the_defaults_page_shows_every_entry_of_the_registry(site):
     page = (site / "reference" / "agents.html").read_text(encoding="utf-8")
     for name, table in DEFAULTS.items():
         start = page.index(f'id="{name}"')
-        end = min([page.index(f'id="{other}"') for other in DEFAULTS if other != name
-                   and page.index(f'id="{other}"') > start] or [len(page)])
+        end = min(
+            [page.index(f'id="{other}"') for other in DEFAULTS if other != name and page.index(f'id="{other}"') > start]
+            or [len(page)]
+        )
         section = page[start:end]
-        assert all(e.cls.__name__ in section and e.reason.split(":")[0] in html.unescape(section)
-                   for e in ENTRIES[name].values()), name
+        assert all(
+            e.cls.__name__ in section and e.reason.split(":")[0] in html.unescape(section)
+            for e in ENTRIES[name].values()
+        ), name
         rows = {}
         for row in re.findall(r"<tr>(.*?)</tr>", section, re.S):
             cells = [html.unescape(re.sub(r"<[^>]+>", "", c)).strip() for c in re.findall(r"<td>(.*?)</td>", row, re.S)]

@@ -16,10 +16,7 @@ from avq.figure_data import PartitionRecorder, cell_anchors, greedy_walk, partit
 from avq.plotting import animate_partition, learning_curves_figure, running_mean
 
 N, E, S, W = 0, 1, 2, 3
-SMALL = ["#######",
-         "#....G#",
-         "#.....#",
-         "#######"]
+SMALL = ["#######", "#....G#", "#.....#", "#######"]
 
 
 class TablePolicy:
@@ -92,9 +89,7 @@ def test_each_cell_is_labelled_on_its_own_squares_once_per_connected_part():
     #                             0 2 2 2
     #                             0 2 1 1
     squares = np.array([(x, y) for y in range(3) for x in range(4)])
-    cells = np.array([0, 0, 0, 1,
-                      0, 2, 2, 2,
-                      0, 2, 1, 1])
+    cells = np.array([0, 0, 0, 1, 0, 2, 2, 2, 0, 2, 1, 1])
     anchors = cell_anchors(squares, cells)
     # cell 0 is an L whose mean (0.6, 0.6) is nearest (1, 1), a square of cell 2: its anchor is its own
     # square nearest that mean, (1, 0) before (0, 1) on the tie; cell 1 has two parts, each labelled.
@@ -167,8 +162,10 @@ def test_few_seeds_are_drawn_one_by_one_and_many_with_an_interval(seeds, bands, 
     from matplotlib.collections import PolyCollection
 
     rng = np.random.default_rng(0)
-    curves = {"avq": [rng.normal(50, 10, 200) for _ in range(seeds)],
-              "tabular": [rng.normal(50, 10, 200) for _ in range(seeds)]}
+    curves = {
+        "avq": [rng.normal(50, 10, 200) for _ in range(seeds)],
+        "tabular": [rng.normal(50, 10, 200) for _ in range(seeds)],
+    }
     cells = {"avq": [np.arange(200) // 10 for _ in range(seeds)]}
     fig = learning_curves_figure(curves, cells=cells)
     ax, ax2 = fig.axes
@@ -195,14 +192,22 @@ def test_the_recorder_keeps_evenly_spaced_views_and_the_last_and_changes_nothing
     assert np.array_equal(plain.codebook_, agent.codebook_) and np.array_equal(plain.q_, agent.q_)
     last = partition_view(plain, recorder.maze)
     assert np.array_equal(views[-1].cells, last.cells) and np.array_equal(views[-1].actions, last.actions)
-    assert views[0].n_cells == make_agent("avq-paper", gym.make("avq/GridMaze-v0", layout="lau2002"),
-                                          seed=1).learn(total_episodes=1).n_cells
+    assert (
+        views[0].n_cells
+        == make_agent("avq-paper", gym.make("avq/GridMaze-v0", layout="lau2002"), seed=1)
+        .learn(total_episodes=1)
+        .n_cells
+    )
 
 
 def _same_views(a, b):
     return [v.episode for v in a] == [v.episode for v in b] and all(
-        np.array_equal(x.cells, y.cells) and np.array_equal(x.actions, y.actions) and x.n_cells == y.n_cells
-        and np.array_equal(x.vectors, y.vectors) for x, y in zip(a, b))
+        np.array_equal(x.cells, y.cells)
+        and np.array_equal(x.actions, y.actions)
+        and x.n_cells == y.n_cells
+        and np.array_equal(x.vectors, y.vectors)
+        for x, y in zip(a, b)
+    )
 
 
 def test_the_recorder_learning_in_chunks_keeps_the_views_a_separate_training_to_each_episode_gives():
@@ -227,7 +232,9 @@ def test_the_recorder_learning_in_chunks_keeps_the_views_a_separate_training_to_
     assert plain.num_timesteps == agent.num_timesteps
     assert np.array_equal(plain.episode_history()["steps"], agent.episode_history()["steps"])
     called = PartitionRecorder(maze(), max_frames=4)
-    make_agent("avq-paper", maze(), seed=1).learn(total_episodes=20, callback=lambda a, r: called(a, r))  # every episode
+    make_agent("avq-paper", maze(), seed=1).learn(
+        total_episodes=20, callback=lambda a, r: called(a, r)
+    )  # every episode
     assert _same_views(views, called.views())
 
 
@@ -276,23 +283,46 @@ def test_a_gif_frame_keeps_its_255_most_frequent_colours_and_takes_the_nearest_f
 
 def test_train_animate_writes_the_gif_on_both_mazes(tmp_path, capsys):
     out = tmp_path / "grid"
-    assert main(["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "15", "--out", str(out),
-                 "--animate", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--env",
+                "avq/GridMaze-v0",
+                "--agent",
+                "avq-paper",
+                "--episodes",
+                "15",
+                "--out",
+                str(out),
+                "--animate",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert f"wrote {out / 'partition.gif'} (15 frames)" in capsys.readouterr().out
     with Image.open(out / "partition.gif") as gif:
         assert gif.n_frames == 15
     out = tmp_path / "robot"
-    assert main(["train", "--env", "avq/RobotMaze-v0", "--episodes", "3", "--out", str(out), "--animate",
-                 "--no-progress"]) == 0
+    assert (
+        main(["train", "--env", "avq/RobotMaze-v0", "--episodes", "3", "--out", str(out), "--animate", "--no-progress"])
+        == 0
+    )
     with Image.open(out / "partition.gif") as gif:
         assert gif.n_frames == 3
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["--env", "CartPole-v1"], "--animate draws the partition of a maze (avq/GridMaze-v0 or avq/RobotMaze-v0), "
-                               "not of CartPole-v1"),
-    (["--env", "avq/GridMaze-v0", "--agent", "tabular"], "--animate draws an agent's cells, and tabular has none"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (
+            ["--env", "CartPole-v1"],
+            "--animate draws the partition of a maze (avq/GridMaze-v0 or avq/RobotMaze-v0), not of CartPole-v1",
+        ),
+        (["--env", "avq/GridMaze-v0", "--agent", "tabular"], "--animate draws an agent's cells, and tabular has none"),
+    ],
+)
 def test_train_animate_refuses_what_has_no_partition(tmp_path, capsys, args, needle):
     out = tmp_path / "run"
     assert main(["train", *args, "--episodes", "5", "--out", str(out), "--animate", "--no-progress"]) == 2

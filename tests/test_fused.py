@@ -30,9 +30,11 @@ def same(a, b):
     assert a.num_timesteps == b.num_timesteps and a.num_episodes == b.num_episodes
 
 
-@pytest.mark.parametrize("name, overrides",
-                         VARIANTS + [("avq", {"explore_bonus": 2.0, "prune_after": 20, "make_room": True})],
-                         ids=["avq-paper", "avq", "avq-general", "avq-bonus-prune"])
+@pytest.mark.parametrize(
+    "name, overrides",
+    VARIANTS + [("avq", {"explore_bonus": 2.0, "prune_after": 20, "make_room": True})],
+    ids=["avq-paper", "avq", "avq-general", "avq-bonus-prune"],
+)
 @pytest.mark.parametrize("seed", [0, 1])
 def test_fused_and_generic_paths_are_identical(name, overrides, seed):
     same(run(name, True, seed, overrides, total_episodes=300), run(name, False, seed, overrides, total_episodes=300))
@@ -75,8 +77,11 @@ def test_other_wrappers_fall_back_to_the_generic_path():
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"observe_sonar": True}, {"start": "fixed", "move": 0.5}])
-@pytest.mark.parametrize("name, overrides", VARIANTS + [("avq", {"cycle_split": True, "explore_bonus": 2.0})],
-                         ids=["avq-paper", "avq", "avq-general", "avq-cycle-split-bonus"])
+@pytest.mark.parametrize(
+    "name, overrides",
+    VARIANTS + [("avq", {"cycle_split": True, "explore_bonus": 2.0})],
+    ids=["avq-paper", "avq", "avq-general", "avq-cycle-split-bonus"],
+)
 def test_fused_robot_maze_is_identical_to_the_generic_path(name, overrides, kwargs):
     runs = []
     for fused in (True, False):

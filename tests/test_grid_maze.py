@@ -564,6 +564,7 @@ def test_numpy_integer_actions_accepted(action):
 
 # -- slip: a stochastic maze ------------------------------------------------------------------------
 
+
 def test_slip_is_a_probability_and_zero_draws_nothing():
     for bad in (-0.1, 1.0, 1.5, True, "0.1", None):
         with pytest.raises(ValueError, match="slip must be a probability in \\[0, 1\\)"):

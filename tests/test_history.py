@@ -7,8 +7,17 @@ from avq.agents._history import HISTORY_FIELDS, EpisodeHistory
 
 
 def _record(episode, steps, ret, wall):
-    return {"episode": episode, "steps": steps, "return": ret, "n_cells": 3, "appends": 1, "merges": 0,
-            "refused": 0, "decisions": steps, "wall_s": wall}
+    return {
+        "episode": episode,
+        "steps": steps,
+        "return": ret,
+        "n_cells": 3,
+        "appends": 1,
+        "merges": 0,
+        "refused": 0,
+        "decisions": steps,
+        "wall_s": wall,
+    }
 
 
 def test_rows_and_columns_round_trip_with_python_types():
@@ -19,8 +28,17 @@ def test_rows_and_columns_round_trip_with_python_types():
     assert len(h) == 3
     row = h[1]
     assert list(row) == list(HISTORY_FIELDS)
-    assert row == {"episode": 2, "steps": 4, "return": 2.0, "n_cells": 5, "appends": 2, "merges": 1,
-                   "refused": 0, "decisions": 3, "wall_s": 0.5}
+    assert row == {
+        "episode": 2,
+        "steps": 4,
+        "return": 2.0,
+        "n_cells": 5,
+        "appends": 2,
+        "merges": 1,
+        "refused": 0,
+        "decisions": 3,
+        "wall_s": 0.5,
+    }
     assert type(row["steps"]) is int and type(row["return"]) is float
     assert h[-1]["episode"] == 3 and h[-1]["refused"] == 1
     assert [r["steps"] for r in h] == [10, 4, 6]

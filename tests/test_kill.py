@@ -65,7 +65,11 @@ def test_sigkill_during_writes_leaves_old_or_new_complete_files(tmp_path):
         png = (tmp_path / "curve.png").read_bytes()
         assert png.startswith(b"\x89PNG") and png.endswith(b"IEND\xaeB`\x82")
         # Leftover temporary files never replace a real one.
-        assert {p.name for p in tmp_path.iterdir() if not p.name.startswith(".")} == {"model.zip", "big.txt", "curve.png"}
+        assert {p.name for p in tmp_path.iterdir() if not p.name.startswith(".")} == {
+            "model.zip",
+            "big.txt",
+            "curve.png",
+        }
 
 
 def _arrays(path: Path) -> dict[str, np.ndarray]:
@@ -80,12 +84,31 @@ def test_a_run_killed_twice_and_resumed_equals_an_uninterrupted_run(tmp_path):
     kwargs = dict(episodes=2500, seed=4, params={"fused": False}, checkpoint_every=50, progress=False)
     reference = train("avq/GridMaze-v0", "avq-paper", out=tmp_path / "straight", **kwargs)
     run = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "avq.cli", "train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper",
-           "--episodes", "2500", "--seed", "4", "--set", "fused=false", "--checkpoint-every", "50",
-           "--no-progress", "--out", str(run)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "avq.cli",
+        "train",
+        "--env",
+        "avq/GridMaze-v0",
+        "--agent",
+        "avq-paper",
+        "--episodes",
+        "2500",
+        "--seed",
+        "4",
+        "--set",
+        "fused=false",
+        "--checkpoint-every",
+        "50",
+        "--no-progress",
+        "--out",
+        str(run),
+    ]
     for attempt in range(2):
-        proc = subprocess.Popen(cmd if attempt == 0 else [sys.executable, "-m", "avq.cli", "train", "--resume",
-                                                          str(run), "--no-progress"])
+        proc = subprocess.Popen(
+            cmd if attempt == 0 else [sys.executable, "-m", "avq.cli", "train", "--resume", str(run), "--no-progress"]
+        )
         try:
             _wait_for(run / "checkpoint.zip")
             if attempt:
@@ -99,8 +122,11 @@ def test_a_run_killed_twice_and_resumed_equals_an_uninterrupted_run(tmp_path):
         lines = (run / "progress.csv").read_text().split("\n")
         assert lines[-1] == ""  # every row is a complete line
         assert all(len(row.split(",")) == len(PROGRESS_COLUMNS) for row in lines[1:-1])
-    done = subprocess.run([sys.executable, "-m", "avq.cli", "train", "--resume", str(run), "--no-progress"],
-                          capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-m", "avq.cli", "train", "--resume", str(run), "--no-progress"],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
     a, b = _arrays(tmp_path / "straight" / "model.zip"), _arrays(run / "model.zip")
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
@@ -110,6 +136,9 @@ def test_a_run_killed_twice_and_resumed_equals_an_uninterrupted_run(tmp_path):
     straight_rows = (tmp_path / "straight" / "progress.csv").read_text().splitlines()[1:]
     strip = lambda rs: [r.rsplit(",", 1)[0] for r in rs]  # noqa: E731  (all but wall_s)
     assert strip(rows) == strip(straight_rows) and len(rows) == 2500
-    again = subprocess.run([sys.executable, "-m", "avq.cli", "train", "--resume", str(run), "--no-progress"],
-                           capture_output=True, text=True)
+    again = subprocess.run(
+        [sys.executable, "-m", "avq.cli", "train", "--resume", str(run), "--no-progress"],
+        capture_output=True,
+        text=True,
+    )
     assert again.returncode == 0 and "already finished" in again.stdout

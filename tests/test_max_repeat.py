@@ -18,8 +18,9 @@ NO = False
 
 def one_action_agent(steps, **kw):
     """An agent with one action on a 1-D scripted episode (so that every decision is known)."""
-    params = dict(alpha=0.5, lam=0.7, gamma=0.5, epsilon=0.0, d_min=1.0, rho=0.0, q_init=0.0, merge_every=0,
-                  scale=1.0, seed=0)
+    params = dict(
+        alpha=0.5, lam=0.7, gamma=0.5, epsilon=0.0, d_min=1.0, rho=0.0, q_init=0.0, merge_every=0, scale=1.0, seed=0
+    )
     params.update(kw)
     return AVQSarsa(ScriptedEnv([((0.0,), steps)], n_actions=1, dims=1), **params)
 
@@ -106,7 +107,9 @@ def test_the_fused_maze_loop_and_the_generic_path_agree_with_max_repeat(name):
 
 @pytest.mark.parametrize("value", [0, -3, 2.5, True, "3"])
 def test_max_repeat_must_be_a_positive_integer_or_none(value):
-    with pytest.raises(ValueError, match=f"^{re.escape(f'max_repeat must be an integer >= 1 or None, not {value!r}')}$"):
+    with pytest.raises(
+        ValueError, match=f"^{re.escape(f'max_repeat must be an integer >= 1 or None, not {value!r}')}$"
+    ):
         avq.make_agent("avq-sarsa", gym.make("CartPole-v1"), max_repeat=value)
 
 

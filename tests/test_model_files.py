@@ -79,7 +79,7 @@ def test_truncated_and_corrupted_files_name_the_file(saved, name, tmp_path):
     for bit, what in ((0x01, "encrypted"), (0x20, "patched")):  # general-purpose flags zipfile cannot read
         flagged = bytearray(data)
         for start in range(len(data) - 4):  # the flags of every central directory entry (what zipfile reads)
-            if data[start:start + 4] == b"PK\x01\x02":
+            if data[start : start + 4] == b"PK\x01\x02":
                 flagged[start + 8] |= bit
         bad = tmp_path / f"{what}.zip"
         bad.write_bytes(bytes(flagged))
@@ -168,9 +168,11 @@ def test_loading_without_env_remakes_the_environment_with_its_make_arguments(tmp
 
 def test_version_1_files_without_history_still_load_but_version_2_needs_it(saved, tmp_path):
     path, agent = saved["tabular"]
+
     def old(m):
         m.update(format_version=1)
         m.pop("env_make")
+
     v1 = _rewrite(path, tmp_path / "v1.zip", meta=old, arrays=lambda a: a.pop("history"))
     loaded = avq.load(v1, env=gym.make("avq/GridMaze-v0"))
     assert np.array_equal(loaded.q_, agent.q_) and len(loaded.history_) == 0

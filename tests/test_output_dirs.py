@@ -25,19 +25,33 @@ from avq.cli import main
 posix_only = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")
 
 # A training run, a sweep and a reproduction long enough to be caught in the act.
-LONG_TRAIN = ["train", "--env", "MountainCar-v0", "--agent", "avq-paper", "--episodes", "100000",
-              "--checkpoint-every", "5", "--no-progress"]
+LONG_TRAIN = [
+    "train",
+    "--env",
+    "MountainCar-v0",
+    "--agent",
+    "avq-paper",
+    "--episodes",
+    "100000",
+    "--checkpoint-every",
+    "5",
+    "--no-progress",
+]
 LONG_SWEEP = {"env": "MountainCar-v0", "agents": ["avq-paper"], "seeds": 6, "episodes": 400, "eval_episodes": 0}
 
 
 def avq_cli(*args, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "avq.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd)
+    return subprocess.run([sys.executable, "-m", "avq.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd)
 
 
 def start(*args, cwd=None) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "avq.cli", *map(str, args)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, cwd=cwd)
+    return subprocess.Popen(
+        [sys.executable, "-m", "avq.cli", *map(str, args)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=cwd,
+    )
 
 
 def wait_until(check, proc: subprocess.Popen | None = None, timeout: float = 120.0) -> None:
@@ -66,6 +80,7 @@ def one_line_error(proc: subprocess.CompletedProcess) -> str:
 
 # -- 8: a run killed before its first checkpoint ---------------------------------------------------
 
+
 def test_train_refuses_a_run_stopped_before_its_first_checkpoint_and_resume_continues_it(tmp_path):
     run = tmp_path / "run"
     args = ["train", "--env", "avq/GridMaze-v0", "--agent", "tabular", "--episodes", "20", "--no-progress"]
@@ -76,13 +91,15 @@ def test_train_refuses_a_run_stopped_before_its_first_checkpoint_and_resume_cont
     line = one_line_error(avq_cli(*args, "--seed", "1", "--out", run))
     assert f"{run} holds a run stopped before its first checkpoint" in line
     assert f"avq train --resume {run}" in line and "choose another --out" in line
-    assert (run / "config.yml").read_bytes() == config and sorted(p.name for p in run.iterdir()
-                                                                    if p.name != ".avq.lock") == ["config.yml"]
+    assert (run / "config.yml").read_bytes() == config and sorted(
+        p.name for p in run.iterdir() if p.name != ".avq.lock"
+    ) == ["config.yml"]
     assert main(["train", "--resume", str(run), "--no-progress"]) == 0
     assert yaml.safe_load((run / "summary.json").read_text())["seed"] == 0
 
 
 # -- 10: paths that cannot be written ---------------------------------------------------------------
+
 
 @pytest.fixture
 def unwritable(tmp_path):
@@ -107,10 +124,22 @@ def unwritable(tmp_path):
 
 def _command(kind: str, out: Path, cwd: Path) -> list[str]:
     (cwd / "s.yml").write_text(yaml.safe_dump({"env": "avq/GridMaze-v0", "agents": ["tabular"], "episodes": 2}))
-    return {"train": ["train", "--env", "avq/GridMaze-v0", "--episodes", "2", "--no-progress", "--out", str(out)],
-            "sweep": ["sweep", "s.yml", "--no-progress", "--out", str(out)],
-            "reproduce": ["reproduce", "--seeds", "1", "--trials", "2", "--agents", "tabular", "--no-progress",
-                          "--out", str(out)]}[kind]
+    return {
+        "train": ["train", "--env", "avq/GridMaze-v0", "--episodes", "2", "--no-progress", "--out", str(out)],
+        "sweep": ["sweep", "s.yml", "--no-progress", "--out", str(out)],
+        "reproduce": [
+            "reproduce",
+            "--seeds",
+            "1",
+            "--trials",
+            "2",
+            "--agents",
+            "tabular",
+            "--no-progress",
+            "--out",
+            str(out),
+        ],
+    }[kind]
 
 
 @pytest.mark.parametrize("kind", ["train", "sweep", "reproduce"])
@@ -121,8 +150,9 @@ def test_an_out_under_a_file_names_the_file(kind, tmp_path):
     assert "Errno" not in line and (tmp_path / "afile.txt").read_text() == "keep me"
 
 
-@pytest.mark.parametrize("kind,inside", [("train", "run"), ("sweep", "run"), ("reproduce", "run"),
-                                         ("train", ""), ("sweep", "")])  # a new directory in it, or it
+@pytest.mark.parametrize(
+    "kind,inside", [("train", "run"), ("sweep", "run"), ("reproduce", "run"), ("train", ""), ("sweep", "")]
+)  # a new directory in it, or it
 def test_an_out_that_cannot_be_written_names_it(kind, inside, unwritable, tmp_path):
     out = unwritable / inside
     line = one_line_error(avq_cli(*_command(kind, out, tmp_path), cwd=tmp_path))
@@ -136,14 +166,17 @@ def test_save_to_an_unwritable_place_names_the_users_path(unwritable, tmp_path):
     with pytest.raises(OSError) as caught:
         agent.save(unwritable / "m.zip")
     assert caught.value.errno in (errno.EACCES, errno.EPERM) and caught.value.filename == str(unwritable / "m.zip")
-    assert str(caught.value) == (f"cannot write {unwritable / 'm.zip'}: no permission to write in {unwritable}; "
-                                 "choose a directory you can write to, or change its permissions")
+    assert str(caught.value) == (
+        f"cannot write {unwritable / 'm.zip'}: no permission to write in {unwritable}; "
+        "choose a directory you can write to, or change its permissions"
+    )
     (tmp_path / "afile.txt").write_text("x")
     with pytest.raises(OSError, match=r"^cannot write .*afile.txt/m.zip: .*afile.txt is a file, not a directory"):
         agent.save(tmp_path / "afile.txt" / "m.zip")
 
 
 # -- 19: a full disk during training ----------------------------------------------------------------
+
 
 def _arrays(path: Path) -> dict[str, np.ndarray]:
     with zipfile.ZipFile(path) as zf, np.load(zf.open("arrays.npz")) as npz:
@@ -153,8 +186,21 @@ def _arrays(path: Path) -> dict[str, np.ndarray]:
 # The 7th flush to disk is progress.csv's at episode 30, the 8th the checkpoint's.
 @pytest.mark.parametrize("fail_at", [7, 8])
 def test_a_full_disk_names_the_file_the_checkpoint_and_the_resume_command(fail_at, tmp_path, monkeypatch, capsys):
-    args = ["train", "--env", "avq/GridMaze-v0", "--agent", "avq-paper", "--episodes", "50", "--seed", "2",
-            "--checkpoint-every", "10", "--no-progress", "--out"]
+    args = [
+        "train",
+        "--env",
+        "avq/GridMaze-v0",
+        "--agent",
+        "avq-paper",
+        "--episodes",
+        "50",
+        "--seed",
+        "2",
+        "--checkpoint-every",
+        "10",
+        "--no-progress",
+        "--out",
+    ]
     assert main([*args, str(tmp_path / "straight")]) == 0
     run = tmp_path / "run"
     calls = []
@@ -174,9 +220,11 @@ def test_a_full_disk_names_the_file_the_checkpoint_and_the_resume_command(fail_a
     stopped_at = avq.load(run / "checkpoint.zip").num_episodes  # the checkpoint is whole
     assert stopped_at == 20
     failed = "progress.csv" if fail_at == 7 else "checkpoint.zip"
-    assert line == (f"avq: error: cannot write {run / failed}: no space left on the device (or over the disk quota) "
-                    f"of {run}; free some space; the run stopped at its checkpoint after episode 20. "
-                    f"Continue it with: avq train --resume {run}")
+    assert line == (
+        f"avq: error: cannot write {run / failed}: no space left on the device (or over the disk quota) "
+        f"of {run}; free some space; the run stopped at its checkpoint after episode 20. "
+        f"Continue it with: avq train --resume {run}"
+    )
     rows = (run / "progress.csv").read_text().split("\n")
     assert rows[-1] == "" and all(len(r.split(",")) == len(PROGRESS_COLUMNS) for r in rows[1:-1])  # complete lines only
     assert main(["train", "--resume", str(run), "--no-progress"]) == 0
@@ -188,6 +236,7 @@ def test_a_full_disk_names_the_file_the_checkpoint_and_the_resume_command(fail_a
 
 # -- 18: one process per output directory -----------------------------------------------------------
 
+
 @posix_only
 def test_a_second_train_into_a_busy_directory_is_refused_until_the_first_is_killed(tmp_path):
     run, lock = tmp_path / "run", tmp_path / "run" / ".avq.lock"
@@ -197,8 +246,10 @@ def test_a_second_train_into_a_busy_directory_is_refused_until_the_first_is_kill
         config = (run / "config.yml").read_bytes()
         for second in ([*LONG_TRAIN, "--seed", "1", "--out", run], ["train", "--resume", run]):
             line = one_line_error(avq_cli(*second))
-            assert line == (f"avq: error: {run} is in use by another avq process (pid {first.pid}); "
-                            "wait until it ends, or choose another --out")
+            assert line == (
+                f"avq: error: {run} is in use by another avq process (pid {first.pid}); "
+                "wait until it ends, or choose another --out"
+            )
         assert (run / "config.yml").read_bytes() == config
     finally:
         kill(first)
@@ -252,6 +303,7 @@ def test_a_busy_reproduce_directory_is_refused_until_the_first_is_killed(tmp_pat
 
 # -- 15: Ctrl-C in a sweep ---------------------------------------------------------------------------
 
+
 # Slow (a sweep in a new process, interrupted); the fast run keeps test_sweep.py's killed-and-rerun sweep.
 @pytest.mark.slow
 @posix_only
@@ -264,8 +316,10 @@ def test_ctrl_c_in_a_sweep_prints_the_command_that_continues_it(tmp_path):
     _, err = proc.communicate(timeout=60)
     finished = len(list((tmp_path / "sw").glob("trials/*/summary.json")))
     assert proc.returncode == 130 and 1 <= finished < 3
-    assert err.strip() == (f"avq: interrupted; {finished} of 3 trials finished and are kept in sw. "
-                           "Continue the sweep with: avq sweep s.yml --out sw --jobs 1")
+    assert err.strip() == (
+        f"avq: interrupted; {finished} of 3 trials finished and are kept in sw. "
+        "Continue the sweep with: avq sweep s.yml --out sw --jobs 1"
+    )
     again = avq_cli(*cmd, cwd=tmp_path)
     assert again.returncode == 0, again.stderr
     kept = f"{finished} finished trial{'s' if finished > 1 else ''}"
@@ -273,6 +327,7 @@ def test_ctrl_c_in_a_sweep_prints_the_command_that_continues_it(tmp_path):
 
 
 # -- 9: a killed sweep's workers --------------------------------------------------------------------
+
 
 def _children(pid: int) -> list[int]:
     table = subprocess.run(["ps", "-A", "-o", "pid=,ppid="], capture_output=True, text=True).stdout.split()

@@ -8,7 +8,7 @@ import pytest
 
 import avq
 from avq.agents.plan import model as _model
-from avq.agents.plan.state import MEM_N
+from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, horizon
 
 from conftest import ScriptedEnv
 
@@ -64,22 +64,32 @@ def test_split_after_is_checked():
 
 # -- v_opt="auto" -------------------------------------------------------------------------------------
 
+
 def test_the_horizon_is_the_time_limit_else_one_over_one_minus_gamma():
-    assert _model.horizon(gym.make("CartPole-v1"), 1.0) == 500.0
+    assert horizon(gym.make("CartPole-v1"), 1.0) == 500.0
     # Discounted: the most 500 steps of reward 1 are worth, 1 + 0.9 + ... + 0.9 ** 499 (not 500).
-    assert _model.horizon(gym.make("CartPole-v1"), 0.9) == pytest.approx(sum(0.9 ** k for k in range(500)))
-    assert _model.horizon(gym.make("CartPole-v1", max_episode_steps=3), 0.5) == pytest.approx(1.75)
+    assert horizon(gym.make("CartPole-v1"), 0.9) == pytest.approx(sum(0.9**k for k in range(500)))
+    assert horizon(gym.make("CartPole-v1", max_episode_steps=3), 0.5) == pytest.approx(1.75)
     env = ScriptedEnv([((0.0,), LINE)], n_actions=1, dims=1)  # (no time limit)
-    assert _model.horizon(env, 0.9) == pytest.approx(10.0)
-    assert _model.horizon(env, 1.0) == _model.UNLIMITED_HORIZON
+    assert horizon(env, 0.9) == pytest.approx(10.0)
+    assert horizon(env, 1.0) == UNLIMITED_HORIZON
 
 
 def test_auto_optimism_is_the_horizon_times_the_largest_reward_seen():
     # Two actions, gamma 0.9 (horizon 10), one episode whose rewards are -1 then 2: untried pairs are worth
     # 0 during it (no reward > 0 seen yet), then 10 * 2 = 20.
     steps = walk([0.1, 0.2, 1.0, 1.1], last_reward=2.0)
-    agent = avq.PlanningAVQ(ScriptedEnv([((0.0,), steps)], n_actions=2, dims=1), scale=1.0, d_min=0.5, gamma=0.9,
-                            v_opt="auto", collision_growth=False, outcome_split=False, split_after=3, seed=0)
+    agent = avq.PlanningAVQ(
+        ScriptedEnv([((0.0,), steps)], n_actions=2, dims=1),
+        scale=1.0,
+        d_min=0.5,
+        gamma=0.9,
+        v_opt="auto",
+        collision_growth=False,
+        outcome_split=False,
+        split_after=3,
+        seed=0,
+    )
     assert agent.v_opt_ == 0.0
     agent.learn(total_episodes=1)
     assert agent.v_opt_ == pytest.approx(20.0)
@@ -116,6 +126,7 @@ def test_bad_v_opt_gets_a_clear_error():
 
 
 # -- scale="auto" -------------------------------------------------------------------------------------
+
 
 def test_the_model_follows_its_transitions_into_the_cells_of_the_new_metric():
     agent = avq.make_agent("avq-plan", "CartPole-v1", seed=0, scale_warmup=400).learn(total_episodes=40)

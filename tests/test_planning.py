@@ -26,6 +26,7 @@ def observe(mdl, s, a, r, disc, s2, budget=1000):
 
 # -- the model ----------------------------------------------------------------------------------------
 
+
 def test_an_untried_pair_is_worth_v_opt_and_a_tried_one_its_statistics():
     mdl = model()
     assert mdl.a.Q[:3].tolist() == [[10.0, 10.0]] * 3 and mdl.a.V[:3].tolist() == [10.0] * 3
@@ -56,7 +57,7 @@ def test_an_smdp_transition_discounts_its_successor_by_gamma_to_the_k():
     observe(mdl, 1, 0, 8.0, 1.0, -1)
     observe(mdl, 1, 1, 8.0, 1.0, -1)
     # Three steps of reward -1 with gamma 0.9: R = -1 - 0.9 - 0.81 = -2.71, discount 0.729.
-    observe(mdl, 0, 0, -2.71, 0.9 ** 3, 1)
+    observe(mdl, 0, 0, -2.71, 0.9**3, 1)
     assert mdl.a.Q[0, 0] == pytest.approx(-2.71 + 0.729 * 8.0)
 
 
@@ -123,6 +124,7 @@ def test_a_pair_is_known_after_known_after_transitions():
 
 # -- tabular-ps ---------------------------------------------------------------------------------------
 
+
 def corridor(**kw):
     return gym.make("avq/GridMaze-v0", layout=["#######", "#S...G#", "#######"], **kw)
 
@@ -179,8 +181,11 @@ def test_bad_planning_options_get_clear_errors():
         avq.make_agent("avq-plan", env, v_min=20.0)
     with pytest.raises(ValueError, match="known_after must be an integer >= 1"):
         avq.make_agent("avq-plan", env, known_after=0)
-    with pytest.raises(ValueError, match="'n_backups' is an option of planning.*'avq' has no model on avq/GridMaze-v0; "
-                                         "the agents that plan on avq/GridMaze-v0 are 'avq-plan', 'grid-ps', 'tabular-ps'$"):
+    with pytest.raises(
+        ValueError,
+        match="'n_backups' is an option of planning.*'avq' has no model on avq/GridMaze-v0; "
+        "the agents that plan on avq/GridMaze-v0 are 'avq-plan', 'grid-ps', 'tabular-ps'$",
+    ):
         avq.make_agent("avq", env, n_backups=10)
     with pytest.raises(ValueError, match=r"split_threshold must be in \(0.0, inf\), not 0"):
         avq.make_agent("avq-plan", env, split_threshold=0)
@@ -203,8 +208,10 @@ def remember(agent, xs, a, x, R, disc=1.0):
     """Store a transition from xs to x (cells by the current codebook) in the memory and the model."""
     ag = agent._ag
     size = int(ag.S[SIZE])
+
     def cell(p):
         return int(np.argmin(((ag.V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))
+
     i, j = cell(xs), cell(x)
     t = int(ag.S[MEM_POS])
     ag.xs[:] = xs  # (the current transition's start)
@@ -223,8 +230,8 @@ def test_appending_a_cell_moves_the_remembered_transitions_that_now_start_or_end
     agent = plan_agent()
     add_cell(agent, (1.0, 1.0))
     add_cell(agent, (5.0, 1.0))
-    remember(agent, (1, 1), 1, (4, 1), -3.0)   # 0 -> 1
-    remember(agent, (1, 2), 1, (2, 2), -1.0)   # 0 -> 0
+    remember(agent, (1, 1), 1, (4, 1), -3.0)  # 0 -> 1
+    remember(agent, (1, 2), 1, (2, 2), -1.0)  # 0 -> 0
     m = agent._model.a
     assert m.cnt[0, 1] == 2 and m.cnt[1, 1] == 0
     agent._make_room()
@@ -234,7 +241,7 @@ def test_appending_a_cell_moves_the_remembered_transitions_that_now_start_or_end
     # distance 1 from both (1, 1) and (2, 2): a tie stays with the lower index, cell 0. The first is unchanged.
     assert agent._ag.mem_i[:2].tolist() == [[1, 0, 1], [1, 0, 2]]
     assert m.cnt[0, 1] == 2 and m.cnt[2, 1] == 0
-    assert agent._ag.e_xs[:m.C[_model.N_EDGES]].sum(axis=0).tolist() == [2.0, 3.0]  # the starts moved with them
+    assert agent._ag.e_xs[: m.C[_model.N_EDGES]].sum(axis=0).tolist() == [2.0, 3.0]  # the starts moved with them
 
 
 def test_the_value_slope_is_the_return_per_distance_travelled_unless_given():
@@ -305,6 +312,7 @@ def test_split_cell_refuses_mean_starts_within_d_min_of_each_other():
 def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
     def env():
         return gym.make("avq/GridMaze-v0")
+
     agent = avq.make_agent("avq-plan", env(), seed=0)
     for _ in range(20):
         agent.learn(total_episodes=10)
@@ -340,13 +348,19 @@ def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
     # One action, cells at (0, 0) and (4, 0). The observations go 0 -> 1 -> 0 -> 1 -> 0 (cells) and end at the
     # goal. The third and fourth transitions return into the cell the decision before left; only the fourth
     # returns by two decisions the model knew (each pair tried once before): its square (1, 0) gets a cell.
-    steps = [((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
-             ((3, 0), -1.0, False, False, False), ((1, 0), -1.0, False, False, False),
-             ((3, 0), 5.0, True, False, False)]
+    steps = [
+        ((3, 0), -1.0, False, False, False),
+        ((1, 0), -1.0, False, False, False),
+        ((3, 0), -1.0, False, False, False),
+        ((1, 0), -1.0, False, False, False),
+        ((3, 0), 5.0, True, False, False),
+    ]
     env = scripted([((0, 0), steps)], n_actions=1)
-    agent = avq.PlanningAVQ(env, **{**MAZE, "scale": 1.0, "d_min": 0.1, "collision_growth": False,
-                                    "outcome_split": False, "cycle_split": True},
-                            seed=0)
+    agent = avq.PlanningAVQ(
+        env,
+        **{**MAZE, "scale": 1.0, "d_min": 0.1, "collision_growth": False, "outcome_split": False, "cycle_split": True},
+        seed=0,
+    )
     agent._setup()
     agent._is_setup = True
     add_cell(agent, (0.0, 0.0))

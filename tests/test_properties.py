@@ -34,7 +34,7 @@ LARGE = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCh
 # -- strategies -----------------------------------------------------------------------------------
 
 POW2_SCALES = st.sampled_from([0.25, 0.5, 1.0, 2.0, 4.0])
-half_grid = st.integers(-40, 40).map(lambda k: k / 2.0)           # exact dyadic coordinates
+half_grid = st.integers(-40, 40).map(lambda k: k / 2.0)  # exact dyadic coordinates
 any_coord = st.floats(-50.0, 50.0, allow_nan=False, allow_infinity=False)
 
 
@@ -77,10 +77,13 @@ def brute_mutual_pairs(y: np.ndarray, inv_scale: np.ndarray) -> list[tuple[int, 
 
 # -- 1. nearest is the true arg-min ------------------------------------------------------------------
 
+
 @FAST
-@given(st.lists(st.tuples(half_grid, half_grid), min_size=1, max_size=60),
-       st.lists(st.tuples(half_grid, half_grid), min_size=1, max_size=20),
-       st.tuples(POW2_SCALES, POW2_SCALES))
+@given(
+    st.lists(st.tuples(half_grid, half_grid), min_size=1, max_size=60),
+    st.lists(st.tuples(half_grid, half_grid), min_size=1, max_size=20),
+    st.tuples(POW2_SCALES, POW2_SCALES),
+)
 def test_nearest_and_dense_batch_are_the_exact_argmin_with_lowest_index_on_ties(points, queries, scale):
     # Duplicates and equidistant vectors are allowed: ties must go to the lowest index.
     y = np.array(points, float)
@@ -93,9 +96,11 @@ def test_nearest_and_dense_batch_are_the_exact_argmin_with_lowest_index_on_ties(
 
 
 @FAST
-@given(st.lists(st.tuples(any_coord, any_coord, any_coord), min_size=1, max_size=50),
-       st.lists(st.tuples(any_coord, any_coord, any_coord), min_size=1, max_size=10),
-       st.tuples(*[st.floats(1e-2, 1e2)] * 3))
+@given(
+    st.lists(st.tuples(any_coord, any_coord, any_coord), min_size=1, max_size=50),
+    st.lists(st.tuples(any_coord, any_coord, any_coord), min_size=1, max_size=10),
+    st.tuples(*[st.floats(1e-2, 1e2)] * 3),
+)
 def test_nearest_and_dense_batch_minimise_the_scaled_distance_on_arbitrary_floats(points, queries, scale):
     y = np.array(points, float)
     cb = Codebook.from_vectors(y, scale)
@@ -171,6 +176,7 @@ def test_tree_mutual_nearest_pairs_match_the_brute_force(data):
 
 # -- 1 and 3 together: random sequences of appends, merges and queries ----------------------------------
 
+
 class CodebookMachine(RuleBasedStateMachine):
     """A Codebook and a value table, against a plain-list model of both (SPEC §1, §4)."""
 
@@ -203,10 +209,14 @@ class CodebookMachine(RuleBasedStateMachine):
     @precondition(lambda self: len(self.model_y) >= 2)
     @rule(rho=st.sampled_from([0.5, 4.0, 100.0]))
     def merge_mutual_similar(self, rho):
-        pairs = [(i, j) for i, j in self.cb.mutual_nearest_pairs().tolist()
-                 if mean_square_difference(np.array(self.model_q[i]), np.array(self.model_q[j])) < rho]
+        pairs = [
+            (i, j)
+            for i, j in self.cb.mutual_nearest_pairs().tolist()
+            if mean_square_difference(np.array(self.model_q[i]), np.array(self.model_q[j])) < rho
+        ]
         assert [tuple(p) for p in self.cb.mutual_nearest_pairs().tolist()] == brute_mutual_pairs(
-            np.array(self.model_y), 1.0 / np.array(self.scale))
+            np.array(self.model_y), 1.0 / np.array(self.scale)
+        )
         self._apply_merge(pairs)
 
     @precondition(lambda self: len(self.model_y) >= 2)
@@ -237,6 +247,7 @@ TestCodebookSequences = CodebookMachine.TestCase
 
 
 # -- 3. merges ------------------------------------------------------------------------------------------
+
 
 def expected_mapping(p: int, pairs) -> np.ndarray:
     removed = {j for _, j in pairs}
@@ -277,8 +288,7 @@ def codebook_and_values(draw, max_p=30):
     p = draw(st.integers(2, max_p))
     m = draw(st.integers(1, 4))
     y = np.array(draw(st.lists(st.tuples(half_grid, half_grid), min_size=p, max_size=p)), float)
-    q = np.array(draw(st.lists(st.lists(st.floats(-1e6, 1e6), min_size=m, max_size=m),
-                               min_size=p, max_size=p)), float)
+    q = np.array(draw(st.lists(st.lists(st.floats(-1e6, 1e6), min_size=m, max_size=m), min_size=p, max_size=p)), float)
     return y, q
 
 
@@ -337,9 +347,12 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
     S[core.SIZE] = p
     S[core.EPISODES] = episodes
 
-    pairs = [(i, j) for i, j in brute_mutual_pairs(y, inv)
-             if mean_square_difference(q[i], q[j]) < rho
-             and (merge_age == 0 or (episodes - born[i] >= merge_age and episodes - born[j] >= merge_age))]
+    pairs = [
+        (i, j)
+        for i, j in brute_mutual_pairs(y, inv)
+        if mean_square_difference(q[i], q[j]) < rho
+        and (merge_age == 0 or (episodes - born[i] >= merge_age and episodes - born[j] >= merge_age))
+    ]
     n = episode_end.merge_pass(V, Q, E, B, act, pc, inv, P, IP, S)
     assert n == len(pairs)
     n_new = p - n
@@ -361,8 +374,10 @@ def test_merge_pass_merges_exactly_the_similar_mutual_pairs(yq, rho, merge_age, 
 # -- 2 and 4. the agent on random scripted episodes -------------------------------------------------------
 
 LOW, HIGH = -10.0, 10.0
-obs_coord = st.one_of(st.integers(-20, 20).map(lambda k: k / 2.0),       # grid: exact distance ties
-                      st.floats(LOW, HIGH, allow_nan=False))
+obs_coord = st.one_of(
+    st.integers(-20, 20).map(lambda k: k / 2.0),  # grid: exact distance ties
+    st.floats(LOW, HIGH, allow_nan=False),
+)
 obs_st = st.tuples(obs_coord, obs_coord)
 reward_st = st.integers(-10, 10).map(float)
 
@@ -458,13 +473,17 @@ def test_appended_vectors_keep_d_min_from_the_codebook_they_join_with_merging(ep
         rows = before_merge[-1]
         assert rows[: len(start)].tolist() == start.tolist()  # nothing moves during an episode
         assert_spaced(rows, len(start), 1.0 / scale, agent.d_min)
-        assert all(tuple(v) in seen for v in rows[len(start):].tolist())
+        assert all(tuple(v) in seen for v in rows[len(start) :].tolist())
         assert agent.history_[e]["n_cells"] == len(rows) - agent.history_[e]["merges"] == agent.n_cells
 
 
 @FAST
-@given(episodes_st(max_episodes=3, max_steps=40, reward=st.floats(-1e3, 1e3)), agent_params(),
-       st.integers(1, 4), st.sampled_from([0, 1]))
+@given(
+    episodes_st(max_episodes=3, max_steps=40, reward=st.floats(-1e3, 1e3)),
+    agent_params(),
+    st.integers(1, 4),
+    st.sampled_from([0, 1]),
+)
 def test_values_stay_finite(episodes, params, reps, every):
     kw, _ = params
     agent = make_agent(episodes, kw, merge_every=every)

@@ -107,8 +107,10 @@ def test_bad_scale_is_refused():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 30), st.integers(0, 30)), min_size=2, max_size=40, unique=True),
-       st.tuples(st.floats(0, 30), st.floats(0, 30)))
+@given(
+    st.lists(st.tuples(st.integers(0, 30), st.integers(0, 30)), min_size=2, max_size=40, unique=True),
+    st.tuples(st.floats(0, 30), st.floats(0, 30)),
+)
 def test_nearest_is_the_true_argmin(points, query):
     cb = make([tuple(map(float, p)) for p in points], scale=(1.0, 3.0))
     q = np.array(query)

@@ -37,12 +37,15 @@ def test_large_mazes_reach_their_density():
     assert abs(lay.walls[1:-1, 1:-1].mean() - 0.3) < 0.01 and (lay.distances[~lay.walls] >= 0).all()
 
 
-@pytest.mark.parametrize(("args", "needle"), [
-    ((2, 10, 0.2), "width must be an integer >= 3"),
-    ((10, 1.5, 0.2), "height"),
-    ((10, 10, 0.9), "wall_density must be a number in"),
-    ((10, 10, -0.1), "wall_density"),
-])
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        ((2, 10, 0.2), "width must be an integer >= 3"),
+        ((10, 1.5, 0.2), "height"),
+        ((10, 10, 0.9), "wall_density must be a number in"),
+        ((10, 10, -0.1), "wall_density"),
+    ],
+)
 def test_bad_arguments(args, needle):
     with pytest.raises(ValueError, match=needle):
         random_layout(*args)
@@ -54,6 +57,7 @@ def test_zero_density_is_an_open_room():
 
 
 # -- refine_layout: the same maze at k times the resolution --------------------------------------------
+
 
 def test_refine_layout_by_hand():
     from avq.envs import refine_layout

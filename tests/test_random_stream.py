@@ -15,11 +15,17 @@ def _draw(src, kinds, ns, out):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1),
-       calls=st.lists(st.tuples(st.sampled_from([0, 1]), st.sampled_from([1, 2, 3, 4, 5, 7, 2**31 + 11, 2**32])),
-                      min_size=1, max_size=120),
-       chunks=st.lists(st.integers(1, 25), min_size=1, max_size=10), size=st.integers(1, 64),
-       syncs=st.lists(st.booleans(), min_size=1, max_size=10))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    calls=st.lists(
+        st.tuples(st.sampled_from([0, 1]), st.sampled_from([1, 2, 3, 4, 5, 7, 2**31 + 11, 2**32])),
+        min_size=1,
+        max_size=120,
+    ),
+    chunks=st.lists(st.integers(1, 25), min_size=1, max_size=10),
+    size=st.integers(1, 64),
+    syncs=st.lists(st.booleans(), min_size=1, max_size=10),
+)
 def test_draws_equal_the_generators_and_leave_it_where_it_would_be(seed, calls, chunks, size, syncs):
     # Mixed random() and integers(0, n) calls, in chunks with reserve() and syncs in between, against the
     # same calls on a twin Generator: the same numbers, and in the end the same generator state (so that a
@@ -33,7 +39,7 @@ def test_draws_equal_the_generators_and_leave_it_where_it_would_be(seed, calls, 
     while k < len(calls):
         n = chunks[c % len(chunks)]
         stream.reserve(64)
-        _draw(stream.src, kinds[k:k + n], ns[k:k + n], out[k:k + n])
+        _draw(stream.src, kinds[k : k + n], ns[k : k + n], out[k : k + n])
         if syncs[c % len(syncs)]:
             stream.sync()
         k += n

@@ -12,7 +12,9 @@ import avq
 README = Path(__file__).resolve().parents[1] / "README.md"
 TEXT = README.read_text(encoding="utf-8")
 #: The README's ```python blocks, with the line each starts on.
-BLOCKS = [(TEXT.count("\n", 0, m.start()) + 2, m.group(1)) for m in re.finditer(r"^```python\n(.*?)^```", TEXT, re.M | re.S)]
+BLOCKS = [
+    (TEXT.count("\n", 0, m.start()) + 2, m.group(1)) for m in re.finditer(r"^```python\n(.*?)^```", TEXT, re.M | re.S)
+]
 #: Every dotted ``avq.`` name in the README's inline code and code blocks, without call arguments.
 NAMES = sorted(set(re.findall(r"(?<![\w./-])avq(?:\.[A-Za-z_]\w*)+", TEXT)))
 

@@ -15,8 +15,8 @@ from avq._io import ProgressLog
 from avq.agents.callbacks import CheckpointCallback
 
 CASES = [  # (agent, env id, episodes before the stop, episodes after, extra parameters)
-    ("avq-paper", "avq/GridMaze-v0", 500, 500, {}),           # fused loop
-    ("avq", "avq/GridMaze-v0", 60, 40, {"fused": False}),      # generic loop on the same maze
+    ("avq-paper", "avq/GridMaze-v0", 500, 500, {}),  # fused loop
+    ("avq", "avq/GridMaze-v0", 60, 40, {"fused": False}),  # generic loop on the same maze
     ("tabular", "avq/GridMaze-v0", 500, 500, {}),
     ("avq", "MountainCar-v0", 4, 3, {}),
     ("grid", "MountainCar-v0", 4, 3, {}),
@@ -65,8 +65,13 @@ def test_resume_in_a_new_process_is_bit_for_bit(tmp_path, name, env_id, first, t
 def test_checkpoints_land_every_n_episodes_with_the_progress_rows(tmp_path):
     agent = avq.make_agent("avq-paper", gym.make("avq/GridMaze-v0"), seed=0)
     seen = []
-    agent.learn(total_episodes=25, callback=[lambda a, r: seen.append((r["episode"], (tmp_path / "checkpoint.zip").exists())),
-                                             CheckpointCallback(10, tmp_path)])
+    agent.learn(
+        total_episodes=25,
+        callback=[
+            lambda a, r: seen.append((r["episode"], (tmp_path / "checkpoint.zip").exists())),
+            CheckpointCallback(10, tmp_path),
+        ],
+    )
     assert avq.load(tmp_path / "checkpoint.zip").num_episodes == 20
     rows = (tmp_path / "progress.csv").read_text().splitlines()
     assert rows[0] == "episode,steps,return,n_cells,appends,merges,refused,decisions,wall_s"
@@ -127,8 +132,16 @@ def test_a_run_written_before_an_option_existed_resumes_with_the_option_off(tmp_
     from avq.runs import resume_train, train
 
     out = tmp_path / "run"
-    train("avq/GridMaze-v0", agent="avq", episodes=30, seed=1, out=out, checkpoint_every=10, progress=False,
-          params={"cycle_split": False})
+    train(
+        "avq/GridMaze-v0",
+        agent="avq",
+        episodes=30,
+        seed=1,
+        out=out,
+        checkpoint_every=10,
+        progress=False,
+        params={"cycle_split": False},
+    )
     config = yaml.safe_load((out / "config.yml").read_text())
     for key in ("cycle_split", "adapt_rate", "prune_after", "alpha_decay", "alpha_min"):
         del config["params"][key]

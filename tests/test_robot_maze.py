@@ -479,7 +479,16 @@ def test_start_positions_are_the_free_non_goal_square_centres():
     starts = RobotMaze(SMALL).start_positions()
     assert starts.dtype == np.float64 and starts.shape == (10, 2)
     assert [tuple(p) for p in starts] == [
-        (0, 0), (1, 0), (2, 0), (3, 0), (0, 1), (2, 1), (3, 1), (0, 2), (1, 2), (2, 2)
+        (0, 0),
+        (1, 0),
+        (2, 0),
+        (3, 0),
+        (0, 1),
+        (2, 1),
+        (3, 1),
+        (0, 2),
+        (1, 2),
+        (2, 2),
     ]
     assert len(RobotMaze().start_positions()) == 97
 

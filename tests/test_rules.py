@@ -9,12 +9,15 @@ import pytest
 from avq import rules
 
 
-@pytest.mark.parametrize("same_cell, collision, done, expected", [
-    (True, False, False, True),     # stays in its cell: the decision is repeated
-    (False, False, False, False),   # entered another cell
-    (True, True, False, False),     # hit a wall
-    (True, False, True, False),     # the episode ended
-])
+@pytest.mark.parametrize(
+    "same_cell, collision, done, expected",
+    [
+        (True, False, False, True),  # stays in its cell: the decision is repeated
+        (False, False, False, False),  # entered another cell
+        (True, True, False, False),  # hit a wall
+        (True, False, True, False),  # the episode ended
+    ],
+)
 def test_a_decision_goes_on_only_inside_its_cell(same_cell, collision, done, expected):
     assert rules.decision_goes_on(same_cell, collision, done) is expected
 
@@ -26,9 +29,9 @@ def test_repeat_limit():
 
 
 def test_reward_jump_needs_a_change_of_at_least_the_trigger_and_a_previous_step():
-    assert rules.reward_jump(-1.0, 0.0, steps_in_episode=2, r_trigger=1.0)       # |−1 − 0| = 1 >= 1
-    assert not rules.reward_jump(-0.5, 0.0, steps_in_episode=2, r_trigger=1.0)   # 0.5 < 1
-    assert not rules.reward_jump(-5.0, 0.0, steps_in_episode=1, r_trigger=1.0)   # the first step has no previous
+    assert rules.reward_jump(-1.0, 0.0, steps_in_episode=2, r_trigger=1.0)  # |−1 − 0| = 1 >= 1
+    assert not rules.reward_jump(-0.5, 0.0, steps_in_episode=2, r_trigger=1.0)  # 0.5 < 1
+    assert not rules.reward_jump(-5.0, 0.0, steps_in_episode=1, r_trigger=1.0)  # the first step has no previous
 
 
 def test_value_jump():
@@ -42,8 +45,8 @@ def test_collision_split_only_where_the_action_is_still_the_cells_best():
     q = np.array([5.0, 2.0])
     assert rules.collision_split(0.4, np.argmax(q) == 0, q[0], -50.0)
     assert not rules.collision_split(0.4, np.argmax(q) == 1, q[1], -50.0)  # not the greedy action
-    assert not rules.collision_split(0.0, True, 5.0, -50.0)                # x is the cell's own vector
-    assert not rules.collision_split(0.4, True, -50.0, -50.0)             # already condemned to chi
+    assert not rules.collision_split(0.0, True, 5.0, -50.0)  # x is the cell's own vector
+    assert not rules.collision_split(0.4, True, -50.0, -50.0)  # already condemned to chi
 
 
 def test_a_cycle_is_a_return_to_the_cell_before():
@@ -55,9 +58,9 @@ def test_a_cycle_is_a_return_to_the_cell_before():
 def test_stayed_too_long():
     # split_after 5, d_min 0.5: a decision 5 steps old, x at distance 0.6 (squared 0.36) from every vector.
     assert rules.stayed_too_long(5, 5, 0.36, 0.5)
-    assert not rules.stayed_too_long(4, 5, 0.36, 0.5)   # not yet 5 steps
-    assert not rules.stayed_too_long(5, 5, 0.25, 0.5)   # within d_min (0.25 = 0.5²): no room for a vector
-    assert not rules.stayed_too_long(99, 0, 9.0, 0.5)   # 0: off
+    assert not rules.stayed_too_long(4, 5, 0.36, 0.5)  # not yet 5 steps
+    assert not rules.stayed_too_long(5, 5, 0.25, 0.5)  # within d_min (0.25 = 0.5²): no room for a vector
+    assert not rules.stayed_too_long(99, 0, 9.0, 0.5)  # 0: off
 
 
 def test_outcome_split_needs_a_disagreement_that_matters():

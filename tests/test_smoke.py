@@ -84,5 +84,4 @@ def test_check_env_on_every_registered_avq_env(env_id):
 
 
 def test_registered_names():
-    assert {"avq", "avq-paper", "avq-plan", "tabular", "tabular-ps", "grid", "grid-ps", "tiles"} <= set(
-        AGENTS)
+    assert {"avq", "avq-paper", "avq-plan", "tabular", "tabular-ps", "grid", "grid-ps", "tiles"} <= set(AGENTS)

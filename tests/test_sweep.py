@@ -51,10 +51,15 @@ def test_local_sweep_writes_every_trial_and_the_driver_files(local_run):
     assert [r["trial"] for r in table] == [t.dirname for t in plan_trials(read_sweep_config(CONFIG))]
     assert {r["config/alpha"] for r in table} == {"0.3", "0.5"}
     assert {(r["agent"], r["config/alpha"]) for r in table} == {
-        (a, x) for a in ("avq-paper", "tabular") for x in ("0.3", "0.5")}
+        (a, x) for a in ("avq-paper", "tabular") for x in ("0.3", "0.5")
+    }
     for trial in (out / "trials").iterdir():
         assert {p.name for p in trial.iterdir() if not p.name.startswith(".")} == {
-            "params.json", "progress.csv", "model.zip", "summary.json"}
+            "params.json",
+            "progress.csv",
+            "model.zip",
+            "summary.json",
+        }
         assert len((trial / "progress.csv").read_text().splitlines()) == 31
     assert (out / "curves.png").read_bytes().startswith(b"\x89PNG")
     # A trial's model is the one run_trial trained: reload it and compare with a fresh run.
@@ -110,28 +115,34 @@ def test_a_failing_trial_is_recorded_and_the_others_finish(tmp_path):
     assert table["no-such-layout"]["status"] == "failed" and "no-such-layout" in table["no-such-layout"]["error"]
     cfg = tmp_path / "f.yml"
     cfg.write_text(yaml.safe_dump(config))
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", "sweep", str(cfg), "--out", str(tmp_path / "s"),
-                           "--no-progress"], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "avq.cli", "sweep", str(cfg), "--out", str(tmp_path / "s"), "--no-progress"],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 1 and "1 failed" in proc.stdout and "no-such-layout" in proc.stderr
 
 
-@pytest.mark.parametrize(("change", "needle"), [
-    ({"env": None}, "'env' is required"),
-    ({"agents": ["nope"]}, "unknown agent 'nope'"),
-    ({"agents": []}, "'agents' must be a non-empty list"),
-    ({"grid": {"alpha": 0.3}}, "'grid.alpha' must be a non-empty list"),
-    ({"grid": {"alpha": [0.3, 7.0]}}, "alpha must be in"),
-    ({"grid": {"colour": [1]}}, "colour"),
-    ({"seeds": 0}, "'seeds' must be a count"),
-    ({"seeds": [1, 1]}, "lists a seed twice"),
-    ({"timesteps": 100}, "not both"),
-    ({"episodes": None}, "'episodes' or 'timesteps' is required"),
-    ({"episodes": -2}, "'episodes' must be an integer >= 1"),
-    ({"metric": "speed"}, "'metric' must be one of"),
-    ({"sedes": 3}, "'sedes' is not a sweep key"),
-    ({"env": "NoSuchEnv-v9"}, "'env'"),
-    ({"params": {"seed": 1}}, "cannot set seed"),
-])
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        ({"env": None}, "'env' is required"),
+        ({"agents": ["nope"]}, "unknown agent 'nope'"),
+        ({"agents": []}, "'agents' must be a non-empty list"),
+        ({"grid": {"alpha": 0.3}}, "'grid.alpha' must be a non-empty list"),
+        ({"grid": {"alpha": [0.3, 7.0]}}, "alpha must be in"),
+        ({"grid": {"colour": [1]}}, "colour"),
+        ({"seeds": 0}, "'seeds' must be a count"),
+        ({"seeds": [1, 1]}, "lists a seed twice"),
+        ({"timesteps": 100}, "not both"),
+        ({"episodes": None}, "'episodes' or 'timesteps' is required"),
+        ({"episodes": -2}, "'episodes' must be an integer >= 1"),
+        ({"metric": "speed"}, "'metric' must be one of"),
+        ({"sedes": 3}, "'sedes' is not a sweep key"),
+        ({"env": "NoSuchEnv-v9"}, "'env'"),
+        ({"params": {"seed": 1}}, "cannot set seed"),
+    ],
+)
 @pytest.mark.parametrize("run_cli", CLI_RUNNERS)
 def test_config_errors_name_the_key(change, needle, tmp_path, run_cli):
     config = {k: v for k, v in {**CONFIG, **change}.items() if v is not None}
@@ -146,15 +157,18 @@ def test_config_errors_name_the_key(change, needle, tmp_path, run_cli):
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.parametrize(("args", "needle"), [
-    (["sweep", "missing.yml", "--out", "o"], "no such sweep config"),
-    (["sweep", "c.yml"], "--out DIR is required"),
-    (["sweep", "c.yml", "--out", "o", "--backend", "spark"], "invalid choice"),
-    (["sweep", "c.yml", "--out", "o", "--address", "x:1"], "--address is for the ray and dask"),
-    (["sweep", "report"], "usage: avq sweep report DIR"),
-    (["sweep", "report", "nowhere"], "no results.csv"),
-    (["sweep", "c.yml", "--out", "o", "--jobs", "0"], "--jobs must be >= 1"),
-])
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["sweep", "missing.yml", "--out", "o"], "no such sweep config"),
+        (["sweep", "c.yml"], "--out DIR is required"),
+        (["sweep", "c.yml", "--out", "o", "--backend", "spark"], "invalid choice"),
+        (["sweep", "c.yml", "--out", "o", "--address", "x:1"], "--address is for the ray and dask"),
+        (["sweep", "report"], "usage: avq sweep report DIR"),
+        (["sweep", "report", "nowhere"], "no results.csv"),
+        (["sweep", "c.yml", "--out", "o", "--jobs", "0"], "--jobs must be >= 1"),
+    ],
+)
 @pytest.mark.parametrize("run_cli", CLI_RUNNERS)
 def test_cli_mistakes_exit_2(args, needle, tmp_path, run_cli):
     (tmp_path / "c.yml").write_text(yaml.safe_dump(CONFIG))
@@ -184,8 +198,7 @@ def test_ray_cluster_gives_the_local_results(local_run, tmp_path):
 
 def test_dask_cluster_gives_the_local_results(local_run, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         run_sweep(CONFIG, tmp_path / "dask", backend="dask", address=cluster.scheduler_address, progress=False)
     assert _table(tmp_path / "dask") == _table(local_run[0])
 
@@ -255,4 +268,6 @@ def test_the_old_name_avq_sweep_still_runs_a_sweep_with_a_deprecation_warning(tm
         avq.sweep.sweep(CONFIG, tmp_path / "older", jobs=1, progress=False)
     new = avq.run_sweep(CONFIG, tmp_path / "new", jobs=1, progress=False)
     drop = ("wall_s", "trial_dir")
-    assert [{k: v for k, v in r.items() if k not in drop} for r in old] == [{k: v for k, v in r.items() if k not in drop} for r in new]
+    assert [{k: v for k, v in r.items() if k not in drop} for r in old] == [
+        {k: v for k, v in r.items() if k not in drop} for r in new
+    ]

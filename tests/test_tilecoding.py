@@ -141,9 +141,15 @@ def test_tiles_and_restore_round_trip():
 
 @pytest.mark.parametrize(
     "kwargs,match",
-    [(dict(bounds=[(0, 0)]), "bounds"), (dict(bounds=[(0, np.inf)]), "bounds"), (dict(bounds=[1, 2]), "bounds"),
-     (dict(tiles_per_dim=0), "tiles_per_dim"), (dict(tiles_per_dim=1.5), "tiles_per_dim"),
-     (dict(n_tilings=0), "n_tilings"), (dict(size=0), "size")],
+    [
+        (dict(bounds=[(0, 0)]), "bounds"),
+        (dict(bounds=[(0, np.inf)]), "bounds"),
+        (dict(bounds=[1, 2]), "bounds"),
+        (dict(tiles_per_dim=0), "tiles_per_dim"),
+        (dict(tiles_per_dim=1.5), "tiles_per_dim"),
+        (dict(n_tilings=0), "n_tilings"),
+        (dict(size=0), "size"),
+    ],
 )
 def test_bad_arguments_are_named(kwargs, match):
     args = dict(bounds=[(0.0, 1.0)], tiles_per_dim=2, n_tilings=2, size=8) | kwargs

@@ -32,8 +32,11 @@ def cli_reference() -> str:
     parser = build_parser()
     parts = [f"```text\n{parser.format_help().strip()}\n```"]
     for name, (sub, summary) in parser.commands.items():
-        parts += [f"## `avq {name}` {{#avq-{name}}}", f"{summary[:1].upper() + summary[1:]}.",
-                  f"```text\n{sub.format_help().strip()}\n```"]
+        parts += [
+            f"## `avq {name}` {{#avq-{name}}}",
+            f"{summary[:1].upper() + summary[1:]}.",
+            f"```text\n{sub.format_help().strip()}\n```",
+        ]
     return "\n\n".join(parts) + "\n"
 
 
@@ -51,11 +54,14 @@ def agents_reference() -> str:
     for name, entries in ENTRIES.items():
         main = entries["*"].cls.__name__
         others = [key for key in entries if key != "*"]
-        overview.append(f"| [`{name}`](#{name}) | [`{main}`][avq.agents.{main}] | "
-                        + (", ".join(f"`{key}`" for key in others) or "-") + " |")
+        overview.append(
+            f"| [`{name}`](#{name}) | [`{main}`][avq.agents.{main}] | "
+            + (", ".join(f"`{key}`" for key in others) or "-")
+            + " |"
+        )
         signatures = {key: inspect.signature(e.cls.__init__).parameters for key, e in entries.items()}
         params = list(dict.fromkeys(p for e in entries.values() for p in e.params))
-        head = ["everywhere (`\"*\"`)" if key == "*" else f"`{key}`" for key in entries]
+        head = ['everywhere (`"*"`)' if key == "*" else f"`{key}`" for key in entries]
         rows = [f"| parameter | {' | '.join(head)} |", "|---|" + "---|" * len(entries)]
         for param in params:
             cells = []
@@ -71,13 +77,23 @@ def agents_reference() -> str:
         if len(set(classes.values())) == 1:
             which = f"Class: [`{main}`][avq.agents.{main}]."
         else:
-            which = "Class: " + "; ".join(
-                f"[`{cls.__name__}`][avq.agents.{cls.__name__}] " + ("everywhere else" if key == "*" else f"on `{key}`")
-                for key, cls in sorted(classes.items(), key=lambda kv: kv[0] == "*")) + "."
-        why = "\n".join(f"- {'everywhere' if key == '*' else f'`{key}`'}: {_cell(e.reason)} "
-                        f"([why](../{e.results}))" for key, e in entries.items())
-        sections.append(f"## `{name}` {{#{name}}}\n\n{SUMMARIES.get(name, '')}\n\n{which} "
-                        f"Data file: `src/avq/agents/defaults/{name}.yaml`.\n\n{why}\n\n" + "\n".join(rows))
+            which = (
+                "Class: "
+                + "; ".join(
+                    f"[`{cls.__name__}`][avq.agents.{cls.__name__}] "
+                    + ("everywhere else" if key == "*" else f"on `{key}`")
+                    for key, cls in sorted(classes.items(), key=lambda kv: kv[0] == "*")
+                )
+                + "."
+            )
+        why = "\n".join(
+            f"- {'everywhere' if key == '*' else f'`{key}`'}: {_cell(e.reason)} ([why](../{e.results}))"
+            for key, e in entries.items()
+        )
+        sections.append(
+            f"## `{name}` {{#{name}}}\n\n{SUMMARIES.get(name, '')}\n\n{which} "
+            f"Data file: `src/avq/agents/defaults/{name}.yaml`.\n\n{why}\n\n" + "\n".join(rows)
+        )
     return "\n".join(overview) + "\n\n" + "\n\n".join(sections) + "\n"
 
 
@@ -113,8 +129,13 @@ def _imports(root: Path) -> dict[str, set[str]]:
         if room == "avq":
             continue
         for node in ast.parse(path.read_text(encoding="utf-8")).body:
-            names = ([node.module] if isinstance(node, ast.ImportFrom) and node.module else
-                     [a.name for a in node.names] if isinstance(node, ast.Import) else [])
+            names = (
+                [node.module]
+                if isinstance(node, ast.ImportFrom) and node.module
+                else [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else []
+            )
             for name in names:
                 if name.startswith("avq.") and _room(name) not in (room, "avq"):
                     edges.setdefault(room, set()).add(_room(name))
@@ -141,12 +162,19 @@ def layout_reference() -> str:
     table = ["| room | imports |", "|---|---|"]
     for room in sorted(edges):
         table.append(f"| `{room}` | " + ", ".join(f"`{r}`" for r in sorted(edges[room])) + " |")
-    return "\n".join(lines) + "\n\nWho imports whom (a room is a top-level module, or a folder of the agents):\n\n" + \
-        "\n".join(table) + "\n"
+    return (
+        "\n".join(lines)
+        + "\n\nWho imports whom (a room is a top-level module, or a folder of the agents):\n\n"
+        + "\n".join(table)
+        + "\n"
+    )
 
 
-GENERATORS = {"<!-- avq:cli -->": cli_reference, "<!-- avq:agents -->": agents_reference,
-              "<!-- avq:layout -->": layout_reference}
+GENERATORS = {
+    "<!-- avq:cli -->": cli_reference,
+    "<!-- avq:agents -->": agents_reference,
+    "<!-- avq:layout -->": layout_reference,
+}
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:

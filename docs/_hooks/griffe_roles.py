@@ -86,7 +86,7 @@ def _exists(path: str, collection: Any, documented: tuple[str, ...] = ()) -> boo
         if not prefixes:
             return False
         head = max(prefixes, key=len)
-        first = collection[f"{head}.{path[len(head) + 1:].split('.')[0]}"]
+        first = collection[f"{head}.{path[len(head) + 1 :].split('.')[0]}"]
         return not (first.is_module and first.path not in documented)
     except (griffe.AliasResolutionError, griffe.CyclicAliasError):
         return False

@@ -180,7 +180,10 @@ def configure() -> Path | None:
             config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
             _configured = (str(folder), user_dir)
             return folder
-    warnings.warn(f"avq: no writable folder for Numba's compilation cache (tried {root} and {_fallback_root()}); "
-                  "Numba's own cache setting is used, which does not see changes across avq's modules",
-                  RuntimeWarning, stacklevel=2)
+    warnings.warn(
+        f"avq: no writable folder for Numba's compilation cache (tried {root} and {_fallback_root()}); "
+        "Numba's own cache setting is used, which does not see changes across avq's modules",
+        RuntimeWarning,
+        stacklevel=2,
+    )
     return None

@@ -41,8 +41,7 @@ def _why(path: Path, cause: OSError) -> str:
     if cause.errno in (errno.ENOTDIR, errno.EEXIST) and blocker is not None:  # a file where a directory must be
         return f"{blocker} is a file, not a directory; choose a path that is not under a file"
     if cause.errno in (errno.EACCES, errno.EPERM):
-        return (f"no permission to write in {where}; choose a directory you can write to, "
-                "or change its permissions")
+        return f"no permission to write in {where}; choose a directory you can write to, or change its permissions"
     if cause.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
         return f"no space left on the device (or over the disk quota) of {where}; free some space"
     if cause.errno == errno.EROFS:
@@ -97,8 +96,9 @@ def hold_directory(directory: str | os.PathLike, lock_file: str | os.PathLike | 
         except (OSError, UnicodeDecodeError):
             pid = ""
         holder = f" (pid {pid})" if pid.isdigit() else ""
-        raise ValueError(f"{directory} is in use by another avq process{holder}; wait until it ends, "
-                         "or choose another --out") from None
+        raise ValueError(
+            f"{directory} is in use by another avq process{holder}; wait until it ends, or choose another --out"
+        ) from None
     except OSError as exc:
         raise WriteError(lock_file.parent, exc) from exc  # (the directory, not the hidden file)
     try:
@@ -173,7 +173,9 @@ class ProgressLog:
                 # Written by an avq of before some of the columns: made again from the history, which holds them.
                 atomic_write_bytes(self.path, self._header.encode())
                 return 0
-            raise ValueError(f"{self.path}: not a progress file written by avq (header {self._header.strip()!r} expected)")
+            raise ValueError(
+                f"{self.path}: not a progress file written by avq (header {self._header.strip()!r} expected)"
+            )
         complete = data[: data.rfind(b"\n") + 1]
         if len(complete) != len(data):
             atomic_write_bytes(self.path, complete)
@@ -196,7 +198,7 @@ class ProgressLog:
             try:
                 data = text.encode()
                 while data:  # one write in practice; loop only on a short write
-                    data = data[os.write(fd, data):]
+                    data = data[os.write(fd, data) :]
                 os.fsync(fd)
             finally:
                 os.close(fd)

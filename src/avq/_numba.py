@@ -9,7 +9,7 @@ import numba
 from numba import types
 from numba.extending import intrinsic
 
-__all__ = ["borrowed", "direct_call"]
+__all__ = ["Compiled", "borrowed", "direct_call"]
 
 
 @intrinsic
@@ -52,3 +52,21 @@ def direct_call(dispatcher: Any, args: tuple) -> Any:
         return None
     compiled = dispatcher.overloads.get(key)
     return None if compiled is None else compiled.entry_point
+
+
+class Compiled:
+    """A compiled function called from Python: through Numba's dispatcher the first time, then directly
+    (:func:`avq._numba.direct_call`). Typing a record of arrays at every call costs the dispatcher several µs,
+    as much as a sweep of a small model. Only for calls whose arguments keep their types: records whose arrays
+    are reallocated with the same dtypes, dimensions and layout (:meth:`avq.agents.plan.model.Model.reserve`), ints, floats, bools."""
+
+    def __init__(self, dispatcher: Any) -> None:
+        self.dispatcher = dispatcher
+        self.entry: Any = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self.entry is not None:
+            return self.entry(*args)
+        out = self.dispatcher(*args)
+        self.entry = direct_call(self.dispatcher, args)
+        return out

@@ -100,12 +100,16 @@ def below(src, n):  # pragma: no cover - replaced by the overload in compiled co
 @overload(uniform, inline="always")
 def _uniform(src):
     if isinstance(src, types.NumPyRandomGeneratorType):
+
         def from_generator(src):
             return src.random()
+
         return from_generator
     if isinstance(src, types.BaseTuple):
+
         def from_stream(src):
             return raw_uniform(src[0], src[1])
+
         return from_stream
     return None
 
@@ -113,12 +117,16 @@ def _uniform(src):
 @overload(below, inline="always")
 def _below(src, n):
     if isinstance(src, types.NumPyRandomGeneratorType):
+
         def from_generator(src, n):
             return src.integers(0, n)
+
         return from_generator
     if isinstance(src, types.BaseTuple):
+
         def from_stream(src, n):
             return raw_below(src[0], src[1], n)
+
         return from_stream
     return None
 

@@ -13,9 +13,17 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-__all__ = ["check_range", "check_int", "check_bool", "check_choice", "check_int_or_ints", "check_per_dimension",
-           "check_optional", "check_sarsa_params",
-           "check_planning_params"]
+__all__ = [
+    "check_range",
+    "check_int",
+    "check_bool",
+    "check_choice",
+    "check_int_or_ints",
+    "check_per_dimension",
+    "check_optional",
+    "check_sarsa_params",
+    "check_planning_params",
+]
 
 T = TypeVar("T")
 
@@ -32,8 +40,9 @@ def _is_int(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, (int, np.integer))
 
 
-def check_range(name: str, value: Any, low: float, high: float, *, low_open: bool = False,
-                high_open: bool = False) -> float:
+def check_range(
+    name: str, value: Any, low: float, high: float, *, low_open: bool = False, high_open: bool = False
+) -> float:
     """``value`` as a float if it is a finite number in the interval (``inf`` only as a closed ``high``)."""
     interval = f"{'(' if low_open else '['}{low}, {high}{')' if high_open else ']'}"
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
@@ -70,6 +79,7 @@ def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
 
 def check_int_or_ints(name: str, value: Any) -> int | list[int]:
     """An integer >= 1 for every dimension, or a non-empty sequence of them (one per dimension)."""
+
     def ok(v: Any) -> bool:
         return _is_int(v) and v >= 1
 
@@ -107,8 +117,17 @@ def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: An
     agent.traces = check_choice("traces", traces, ("replacing", "accumulating"))
 
 
-def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_min: Any, known_after: Any,
-                          n_backups: Any, tol: Any, auto_v_opt: bool = False) -> None:
+def check_planning_params(
+    agent: Any,
+    gamma: Any,
+    epsilon: Any,
+    v_opt: Any,
+    v_min: Any,
+    known_after: Any,
+    n_backups: Any,
+    tol: Any,
+    auto_v_opt: bool = False,
+) -> None:
     """Check and store the hyper-parameters every planning agent shares (``auto_v_opt``: the agent also
     takes ``v_opt="auto"``)."""
     agent.gamma = check_range("gamma", gamma, 0.0, 1.0)
@@ -124,8 +143,10 @@ def check_planning_params(agent: Any, gamma: Any, epsilon: Any, v_opt: Any, v_mi
             raise _Invalid(exc.name, f"{exc.expected} or 'auto'", exc.value) from None
     agent.v_min = check_range("v_min", v_min, -np.inf, np.inf, low_open=True, high_open=True)
     if agent.v_opt != "auto" and agent.v_min > agent.v_opt:
-        raise ValueError(f"v_min ({agent.v_min}) must not exceed v_opt ({agent.v_opt}): v_min is the floor of every "
-                         "value, v_opt what an untried decision is worth")
+        raise ValueError(
+            f"v_min ({agent.v_min}) must not exceed v_opt ({agent.v_opt}): v_min is the floor of every "
+            "value, v_opt what an untried decision is worth"
+        )
     agent.known_after = check_int("known_after", known_after, 1)
     agent.n_backups = check_int("n_backups", n_backups, 0)
     agent.tol = check_range("tol", tol, 0.0, np.inf, low_open=True, high_open=True)

@@ -32,9 +32,21 @@ _BAD_VALUES: dict[str, Any] = {"alpha": -0.5, "gamma": 1.5, "epsilon": 2.0, "lam
 class _Case:
     """Makes agents of one kind on fresh environments."""
 
-    def __init__(self, agent: str | type[BaseAgent], env_id: str, env_kwargs: dict[str, Any], params: dict[str, Any],
-                 episodes: int) -> None:
-        self.agent, self.env_id, self.env_kwargs, self.params, self.episodes = agent, env_id, env_kwargs, params, episodes
+    def __init__(
+        self,
+        agent: str | type[BaseAgent],
+        env_id: str,
+        env_kwargs: dict[str, Any],
+        params: dict[str, Any],
+        episodes: int,
+    ) -> None:
+        self.agent, self.env_id, self.env_kwargs, self.params, self.episodes = (
+            agent,
+            env_id,
+            env_kwargs,
+            params,
+            episodes,
+        )
 
     def env(self) -> gym.Env:
         import avq.envs  # noqa: F401  (registers avq's environments)
@@ -97,8 +109,9 @@ def check_seeding(case: _Case) -> None:
     b = case.make(seed=11).learn(total_episodes=case.episodes)
     _assert_same(_snapshot(a), _snapshot(b), "two runs with the same seed")
     c = case.make(seed=12).learn(total_episodes=case.episodes)
-    assert any(not np.array_equal(x, y) for x, y in zip(_snapshot(a).values(), _snapshot(c).values())), \
+    assert any(not np.array_equal(x, y) for x, y in zip(_snapshot(a).values(), _snapshot(c).values())), (
         "two different seeds gave identical results"
+    )
 
 
 def check_additive_learn(case: _Case) -> None:
@@ -179,9 +192,14 @@ CHECKS: dict[str, Callable[[_Case], None]] = {
 }
 
 
-def check_agent(agent: str | type[BaseAgent], env_id: str = "avq/GridMaze-v0", *,
-                env_kwargs: dict[str, Any] | None = None, params: dict[str, Any] | None = None,
-                episodes: int = 4) -> list[str]:
+def check_agent(
+    agent: str | type[BaseAgent],
+    env_id: str = "avq/GridMaze-v0",
+    *,
+    env_kwargs: dict[str, Any] | None = None,
+    params: dict[str, Any] | None = None,
+    episodes: int = 4,
+) -> list[str]:
     """Run every check in :data:`CHECKS` on an agent; return their names, or raise ``AssertionError``.
 
     Args:

@@ -147,14 +147,18 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
         walks = np.array(starts, dtype=np.int64).reshape(-1, 2)
         dyn = base.dynamics
         success, steps = _greedy_walks(dyn.walls, dyn.goal[0], dyn.goal[1], policy, walks, limit)
-        outcomes = [{"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
-                    for start, ok, n, best in zip(starts, success, steps, shortest)]
+        outcomes = [
+            {"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
+            for start, ok, n, best in zip(starts, success, steps, shortest)
+        ]
     elif type(base) is RobotMaze and base.dynamics.sonar_noise == 0.0:
         # The same walks as stepping the environment, all at once, with the maze's own compiled move.
         success, steps = _robot_walks(agent, base.dynamics, starts, limit)
-        outcomes = [{"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
-                    for start, ok, n, best in zip(starts, success, steps, shortest)]
-    for start, best in ([] if outcomes else zip(starts, shortest)):
+        outcomes = [
+            {"start": start, "success": bool(ok), "steps": int(n), "shortest": best}
+            for start, ok, n, best in zip(starts, success, steps, shortest)
+        ]
+    for start, best in [] if outcomes else zip(starts, shortest):
         obs, _ = base.reset(options={"start": start})
         steps, success = 0, False
         while steps < limit:

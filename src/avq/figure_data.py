@@ -25,8 +25,18 @@ import numpy as np
 from avq.agents.base import BaseAgent, EpisodeRecord
 from avq.agents.callbacks import BaseCallback
 
-__all__ = ["MazeSquares", "maze_squares", "PartitionView", "partition_view", "cell_anchors", "GreedyWalk",
-           "greedy_walk", "sample_walks", "PartitionRecorder", "has_partition"]
+__all__ = [
+    "MazeSquares",
+    "maze_squares",
+    "PartitionView",
+    "partition_view",
+    "cell_anchors",
+    "GreedyWalk",
+    "greedy_walk",
+    "sample_walks",
+    "PartitionRecorder",
+    "has_partition",
+]
 
 
 @dataclass(frozen=True)
@@ -106,7 +116,9 @@ def cell_anchors(squares: np.ndarray, cells: np.ndarray) -> np.ndarray:
     at = {(x, y): i for i, (x, y) in enumerate(zip(xs, ys))}
     raster = np.lexsort((squares[:, 0], squares[:, 1])).argsort().tolist()  # each square's place in row-major order
     part = [-1] * len(cs)
-    parts: list[tuple[int, int, list[int]]] = []  # (cell, first square, squares): one per connected part, found from its first square
+    parts: list[
+        tuple[int, int, list[int]]
+    ] = []  # (cell, first square, squares): one per connected part, found from its first square
     for i in range(len(cs)):  # (a flood fill: faster than labelling the grid once per cell, as it was)
         if part[i] >= 0:
             continue

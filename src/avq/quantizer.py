@@ -23,8 +23,18 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-__all__ = ["Codebook", "append_vector", "compact_rows", "merge_kernel", "mutual_nearest_pairs_kernel",
-           "nearest_batch_kernel", "nearest_index", "nearest_pairs_kernel", "neighbours_kernel", "scaled_distance"]
+__all__ = [
+    "Codebook",
+    "append_vector",
+    "compact_rows",
+    "merge_kernel",
+    "mutual_nearest_pairs_kernel",
+    "nearest_batch_kernel",
+    "nearest_index",
+    "nearest_pairs_kernel",
+    "neighbours_kernel",
+    "scaled_distance",
+]
 
 # Above this many vectors, pairwise work uses a k-d tree instead of a dense matrix.
 _TREE_THRESHOLD = 512
@@ -61,8 +71,9 @@ def nearest_index(vectors: np.ndarray, size: int, x: np.ndarray, inv_scale: np.n
 
 
 @njit(cache=True, nogil=True)
-def nearest_batch_kernel(vectors: np.ndarray, size: int, xs: np.ndarray, inv_scale: np.ndarray,
-                         cand: np.ndarray) -> np.ndarray:
+def nearest_batch_kernel(
+    vectors: np.ndarray, size: int, xs: np.ndarray, inv_scale: np.ndarray, cand: np.ndarray
+) -> np.ndarray:
     """:func:`nearest_index` of every row of ``xs``, with the very same arithmetic (so that a batch query and
     the agent's own step agree on every tie). ``cand`` ``(b, k)``: look only among these candidates
     (``k = 0``: among all ``size`` vectors); lowest index on ties among them."""
@@ -118,8 +129,9 @@ def neighbours_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray):
 
 
 @njit(cache=True, nogil=True)
-def mutual_nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray,
-                                strict: bool = True) -> np.ndarray:
+def mutual_nearest_pairs_kernel(
+    vectors: np.ndarray, size: int, inv_scale: np.ndarray, strict: bool = True
+) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, each the other's unique nearest vector (docs/explanation/paper.md#merging, Fig. 2's strict <).
 
     With ``strict=False`` a tie for the nearest goes to the lowest index instead of

@@ -49,8 +49,9 @@ class ReproduceRun:
 _WARM: set[str] = set()
 
 
-def warm_up(agent_name: str, layout: LayoutSpec, start: str = "random",
-            overrides: dict[str, Any] | None = None) -> float:
+def warm_up(
+    agent_name: str, layout: LayoutSpec, start: str = "random", overrides: dict[str, Any] | None = None
+) -> float:
     """Compile (or load from Numba's cache) the kernels an agent uses on a maze, once per process.
 
     Two trials of learning and a greedy evaluation on a throwaway agent and environment,
@@ -179,8 +180,7 @@ def reproduce(
     with hold_directory(out, beside.parent / f".{beside.name}.lock"):
         t0 = time.perf_counter()
         with _replacing(out) as staging:
-            summary = _run_and_write(staging, lay, layout, seeds, trials, agents, start, n_jobs, progress, log,
-                                     animate)
+            summary = _run_and_write(staging, lay, layout, seeds, trials, agents, start, n_jobs, progress, log, animate)
         if log is not None:
             log(f"wrote {out}: {_listing(out)} ({time.perf_counter() - t0:.1f} s)")
         return summary
@@ -198,9 +198,11 @@ def _check_replaceable(out: Path) -> None:
         return
     others = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     if others:
-        raise ValueError(f"--out {out} holds files that avq reproduce did not write ({', '.join(others[:3])}"
-                         f"{', ...' if len(others) > 3 else ''}); the reproduction replaces its directory as a "
-                         "whole, so give a new or empty directory")
+        raise ValueError(
+            f"--out {out} holds files that avq reproduce did not write ({', '.join(others[:3])}"
+            f"{', ...' if len(others) > 3 else ''}); the reproduction replaces its directory as a "
+            "whole, so give a new or empty directory"
+        )
 
 
 @contextmanager
@@ -230,6 +232,7 @@ def _replacing(out: Path) -> Iterator[Path]:
 
 def _listing(out: Path) -> str:
     """The entries of a directory, for a message: ``a.json, b.png, models/ (30 files)``."""
+
     def describe(p: Path) -> str:
         if not p.is_dir():
             return p.name
@@ -240,16 +243,27 @@ def _listing(out: Path) -> str:
     return ", ".join(describe(p) for p in entries if not p.name.startswith("."))
 
 
-def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[int], trials: int,
-                   agents: Sequence[str], start: str, n_jobs: int | None, progress: bool,
-                   log: Callable[[str], None] | None, animate: bool) -> dict[str, Any]:
+def _run_and_write(
+    out: Path,
+    lay: Layout,
+    layout: LayoutSpec,
+    seeds: Sequence[int],
+    trials: int,
+    agents: Sequence[str],
+    start: str,
+    n_jobs: int | None,
+    progress: bool,
+    log: Callable[[str], None] | None,
+    animate: bool,
+) -> dict[str, Any]:
     """Train, evaluate, and write summary.json, the figures and the models into ``out``; return the summary."""
     (out / "models").mkdir(parents=True, exist_ok=True)
     layout_arg: LayoutSpec = list(lay.rows)
     jobs = [(name, int(seed)) for name in agents for seed in seeds]
     n_jobs = n_jobs or min(len(jobs), os.cpu_count() or 1)
-    args = [(name, layout_arg, seed, trials, start, str(out / "models" / f"{name}__seed{seed}.zip"))
-            for name, seed in jobs]
+    args = [
+        (name, layout_arg, seed, trials, start, str(out / "models" / f"{name}__seed{seed}.zip")) for name, seed in jobs
+    ]
     if log is not None and not _kernels_cached():
         log("compiling the kernels, once for this installation (30-60 s) ...")
     # Compiled (or loaded) here, before the progress bar starts, so that its rate counts runs alone.
@@ -296,14 +310,20 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
     env = gym.make("avq/GridMaze-v0", layout=layout_arg, start=start)
 
     def title(name: str, seed: int, n_cells: int, which: str = "") -> str:
-        return (f"{name}, seed {seed}{which}: {n_cells} cells for {lay.n_states} states\n"
-                f"greedy policy reaches the goal from {by[(name, seed)].success_rate:.0%} of starts")
+        return (
+            f"{name}, seed {seed}{which}: {n_cells} cells for {lay.n_states} states\n"
+            f"greedy policy reaches the goal from {by[(name, seed)].success_rate:.0%} of starts"
+        )
 
     # partition.png: the headline agent where its rules work best, beside where they work worst.
     headline = "avq-paper" if "avq-paper" in agents else (avq_names or list(agents))[0]
     ranked = sorted((int(s) for s in seeds), key=lambda s: -by[(headline, s)].success_rate)  # stable: seed order
-    shown = [ranked[0]] if by[(headline, ranked[0])].success_rate == by[(headline, ranked[-1])].success_rate \
+    shown = (
+        [ranked[0]]
+        if by[(headline, ranked[0])].success_rate == by[(headline, ranked[-1])].success_rate
         else [ranked[0], ranked[-1]]
+    )
+
     def saved(name: str, seed: int) -> BaseAgent:
         path = by[(name, seed)].model_path
         assert path is not None  # (every run here saves its model, in models/)
@@ -311,8 +331,12 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
 
     models = [saved(headline, s) for s in shown]
     which = [""] if len(shown) == 1 else [f" (best of {len(seeds)} seeds)", f" (worst of {len(seeds)} seeds)"]
-    plot_partitions(models, env, out / "partition.png",
-                    titles=[title(headline, s, m.n_cells, w) for s, m, w in zip(shown, models, which)])
+    plot_partitions(
+        models,
+        env,
+        out / "partition.png",
+        titles=[title(headline, s, m.n_cells, w) for s, m, w in zip(shown, models, which)],
+    )
     # partition-NAME.png: every other AVQ agent's first seed.
     for name in avq_names:
         if name != headline:
@@ -326,8 +350,9 @@ def _run_and_write(out: Path, lay: Layout, layout: LayoutSpec, seeds: Sequence[i
         animate_partition(recorder.views(), env, out / "partition.gif", title=f"{headline}, seed {shown[0]}")
     curves = {n: [by[(n, int(s))].steps_per_trial for s in seeds] for n in agents}
     cells = {n: [by[(n, int(s))].cells_per_trial for s in seeds] for n in avq_names}
-    plot_learning_curves(curves, out / "learning_curve.png", cells=cells or None,
-                         title=f"{summary['layout']}: steps per trial")
+    plot_learning_curves(
+        curves, out / "learning_curve.png", cells=cells or None, title=f"{summary['layout']}: steps per trial"
+    )
     if log is not None:
         log(format_table(summary))
     return summary
@@ -361,9 +386,13 @@ def format_table(summary: dict[str, Any]) -> str:
             f"{f'{succ.mean():.0%} [{succ.min():.0%}-{succ.max():.0%}]':>24} {ratio:>11} "
             f"{np.mean(res['env_steps']):>10.0f} {np.mean(res['wall_s']):>8.2f}"
         )
-    lines.append("success: greedy policy from every start; path ratio: greedy over shortest steps; "
-                 "env steps, seconds: training, mean per run")
+    lines.append(
+        "success: greedy policy from every start; path ratio: greedy over shortest steps; "
+        "env steps, seconds: training, mean per run"
+    )
     if "warmup_s" in summary:
-        lines.append(f"(seconds: training alone; the kernels were compiled or loaded before it, in "
-                     f"{summary['warmup_s']:.2f} s: warmup_s in summary.json)")
+        lines.append(
+            f"(seconds: training alone; the kernels were compiled or loaded before it, in "
+            f"{summary['warmup_s']:.2f} s: warmup_s in summary.json)"
+        )
     return "\n".join(lines)

@@ -15,10 +15,26 @@ import numpy as np
 from numba import njit
 
 __all__ = [
-    "CHI", "APPEND", "KEEP", "decision_goes_on", "collision_rule", "may_append", "mean_square_difference",
-    "similar_profiles", "merge_profiles",
-    "repeat_limit_reached", "reward_jump", "value_jump", "collision_split", "closes_cycle", "stayed_too_long",
-    "outcome_disagrees", "split_matters", "old_enough", "same_greedy_action", "stale_cell",
+    "CHI",
+    "APPEND",
+    "KEEP",
+    "decision_goes_on",
+    "collision_rule",
+    "may_append",
+    "mean_square_difference",
+    "similar_profiles",
+    "merge_profiles",
+    "repeat_limit_reached",
+    "reward_jump",
+    "value_jump",
+    "collision_split",
+    "closes_cycle",
+    "stayed_too_long",
+    "outcome_disagrees",
+    "split_matters",
+    "old_enough",
+    "same_greedy_action",
+    "stale_cell",
 ]
 
 #: Outcomes of :func:`collision_rule`.

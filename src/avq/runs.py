@@ -84,13 +84,16 @@ def train(
         if (out / "model.zip").exists():
             raise ValueError(f"{out} already holds a trained run; choose another --out")
         if (out / "checkpoint.zip").exists():
-            raise ValueError(f"{out} holds a stopped run; continue it with 'avq train --resume {out}', "
-                             "or choose another --out")
+            raise ValueError(
+                f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out"
+            )
         if (out / "sweep.json").exists():
             raise ValueError(f"{out} holds a sweep; choose another --out for the run")
         if (out / "config.yml").exists():
-            raise ValueError(f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
-                             f"with 'avq train --resume {out}' (from episode 0), or choose another --out")
+            raise ValueError(
+                f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
+                f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
+            )
         agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
         config = {
             "env": env_id,
@@ -137,8 +140,10 @@ def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str,
             model = load(checkpoint, env=env)
             expected = make_agent(config["agent"], env, seed=config.get("seed"), **params)
             if type(model) is not type(expected) or model.get_params() != expected.get_params():
-                raise ValueError(f"{checkpoint} does not belong to this run: its agent or parameters differ from "
-                                 f"{out / 'config.yml'}")
+                raise ValueError(
+                    f"{checkpoint} does not belong to this run: its agent or parameters differ from "
+                    f"{out / 'config.yml'}"
+                )
         else:
             model = make_agent(config["agent"], env, seed=config.get("seed"), **params)
         return _run_to_the_end(model, out, config, progress)
@@ -162,8 +167,9 @@ def _recorded_params(config: dict[str, Any]) -> dict[str, Any]:
     return params
 
 
-def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: bool,
-                    callback: Callback | None = None) -> dict[str, Any]:
+def _run_to_the_end(
+    model: Any, out: Path, config: dict[str, Any], progress: bool, callback: Callback | None = None
+) -> dict[str, Any]:
     """Learn what is left of the run's budget with checkpoints; write progress, model and summary."""
     every = int(config.get("checkpoint_every") or 100)
     if config.get("episodes") is not None:
@@ -172,25 +178,33 @@ def _run_to_the_end(model: Any, out: Path, config: dict[str, Any], progress: boo
         left = {"total_timesteps": max(0, int(config["timesteps"]) - model.num_timesteps)}
     try:
         checkpoints = CheckpointCallback(every, out)
-        model.learn(**left, progress_bar=progress, callback=[checkpoints] if callback is None else [callback, checkpoints])
+        model.learn(
+            **left, progress_bar=progress, callback=[checkpoints] if callback is None else [callback, checkpoints]
+        )
     except NotFiniteError as exc:  # (learn checkpoints at every multiple of `every`, and writes nothing else)
         done = model.num_episodes - model.num_episodes % every
-        kept = (f"its checkpoint after episode {done} and progress.csv up to it are intact" if done else
-                f"it had no checkpoint yet (the first comes after episode {every})")
-        raise NotFiniteError(f"{exc}; the run in {out} stopped there: {kept}; once the environment is fixed, "
-                             f"continue it with 'avq train --resume {out}'") from None
+        kept = (
+            f"its checkpoint after episode {done} and progress.csv up to it are intact"
+            if done
+            else f"it had no checkpoint yet (the first comes after episode {every})"
+        )
+        raise NotFiniteError(
+            f"{exc}; the run in {out} stopped there: {kept}; once the environment is fixed, "
+            f"continue it with 'avq train --resume {out}'"
+        ) from None
     ProgressLog(out / "progress.csv", PROGRESS_COLUMNS).sync(model.history_)
     model.save(out / "model.zip")
     hist = model.episode_history()
     rets = hist.get("return", np.zeros(0))
-    tail = rets[-max(1, len(rets) // 10):] if len(rets) else rets
+    tail = rets[-max(1, len(rets) // 10) :] if len(rets) else rets
     summary = {
         "env": config["env"],
         "agent": config["agent"],
         "seed": config.get("seed"),
         "episodes": int(model.num_episodes),
         "env_steps": int(model.num_timesteps),
-        "n_cells": int(model.n_cells), "size_unit": model.size_unit,
+        "n_cells": int(model.n_cells),
+        "size_unit": model.size_unit,
         "final_return_mean": float(np.mean(tail)) if len(tail) else None,
         "wall_s": round(model.wall_s_, 3),
         "out": str(out),
@@ -230,8 +244,13 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     return config
 
 
-def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | None = 0, max_steps: int = 100_000,
-                 progress: bool = False) -> dict[str, Any]:
+def evaluate_run(
+    run_dir: str | os.PathLike,
+    episodes: int = 10,
+    seed: int | None = 0,
+    max_steps: int = 100_000,
+    progress: bool = False,
+) -> dict[str, Any]:
     """Load a model and evaluate its greedy policy (and, on a maze, from every start).
 
     ``run_dir`` is a run directory of :func:`train` (its ``model.zip``, on the environment
@@ -246,8 +265,9 @@ def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | Non
         try:
             model = load(run_dir)
         except ValueError as exc:
-            raise ValueError(f"{exc}; give a run directory (written by 'avq train') or a model file "
-                             "(written by agent.save)") from None
+            raise ValueError(
+                f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
+            ) from None
         env, agent = model.env, type(model).__name__
     else:
         config = read_run_config(run_dir)
@@ -260,10 +280,15 @@ def evaluate_run(run_dir: str | os.PathLike, episodes: int = 10, seed: int | Non
     spec = env.spec
     assert spec is not None  # (made from its id: by make_env, or by load from the id the file records)
     report: dict[str, Any] = {
-        "run": str(run_dir), "env": spec.id, "agent": agent, "n_cells": int(model.n_cells),
+        "run": str(run_dir),
+        "env": spec.id,
+        "agent": agent,
+        "n_cells": int(model.n_cells),
         "size_unit": model.size_unit,
-        **{k: result[k] for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate", "capped",
-                                  "max_steps")},
+        **{
+            k: result[k]
+            for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate", "capped", "max_steps")
+        },
     }
     if hasattr(env.unwrapped, "layout"):
         maze = evaluate_maze(model, gym.make(spec))  # (a second env like the first)

@@ -116,8 +116,10 @@ class TileCoder:
 
     def __repr__(self) -> str:
         bounds = list(zip(self.low.tolist(), self.high.tolist()))
-        return (f"TileCoder(bounds={bounds}, tiles_per_dim={self.tiles_per_dim.tolist()}, "
-                f"n_tilings={self.n_tilings}, size={self.size})")
+        return (
+            f"TileCoder(bounds={bounds}, tiles_per_dim={self.tiles_per_dim.tolist()}, "
+            f"n_tilings={self.n_tilings}, size={self.size})"
+        )
 
     @property
     def full(self) -> bool:

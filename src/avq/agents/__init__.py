@@ -16,6 +16,23 @@ from avq.agents.plan.agent import PlanningAVQ
 from avq.agents.plan.sweeping import PrioritizedSweeping
 from avq.agents.registry import AGENTS, make_agent
 
-__all__ = ["AVQSarsa", "PlanningAVQ", "TabularSarsa", "PrioritizedSweeping", "GridSarsa", "TileSarsa", "ActionCodebookSarsa",
-           "BaseAgent", "NotFiniteError", "AGENTS", "make_agent", "load", "registry", "save_util", "BaseCallback",
-           "CallbackList", "CheckpointCallback", "ProgressBarCallback"]
+__all__ = [
+    "AVQSarsa",
+    "PlanningAVQ",
+    "TabularSarsa",
+    "PrioritizedSweeping",
+    "GridSarsa",
+    "TileSarsa",
+    "ActionCodebookSarsa",
+    "BaseAgent",
+    "NotFiniteError",
+    "AGENTS",
+    "make_agent",
+    "load",
+    "registry",
+    "save_util",
+    "BaseCallback",
+    "CallbackList",
+    "CheckpointCallback",
+    "ProgressBarCallback",
+]

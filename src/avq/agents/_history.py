@@ -81,8 +81,10 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
         """The history held in ``data`` (as returned by :meth:`as_array`), checked."""
         data = np.asarray(data)
         if data.ndim != 2 or data.shape[1] != len(HISTORY_FIELDS) or not np.issubdtype(data.dtype, np.floating):
-            raise ValueError(f"array history has shape {data.shape} and dtype {data.dtype}; "
-                             f"expected (episodes, {len(HISTORY_FIELDS)}) floats")
+            raise ValueError(
+                f"array history has shape {data.shape} and dtype {data.dtype}; "
+                f"expected (episodes, {len(HISTORY_FIELDS)}) floats"
+            )
         history = cls()
         history._reserve(len(data))[:] = data
         return history
@@ -92,5 +94,7 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
         if self._n == 0:
             return {}
         data = self._data[: self._n]
-        return {f: (data[:, k].copy() if f in _FLOAT_FIELDS else data[:, k].astype(np.int64))
-                for k, f in enumerate(HISTORY_FIELDS)}
+        return {
+            f: (data[:, k].copy() if f in _FLOAT_FIELDS else data[:, k].astype(np.int64))
+            for k, f in enumerate(HISTORY_FIELDS)
+        }

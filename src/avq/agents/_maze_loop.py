@@ -30,8 +30,20 @@ from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_geometry import random_start, robot_move, sonar_ranges
 
-__all__ = ["Maze", "plan", "maze_arguments", "borrowed_maze", "drive", "maze_start", "maze_move", "maze_observation", "DONE", "NEED_CAPACITY",
-           "RECORDS_FULL", "N_R"]
+__all__ = [
+    "Maze",
+    "plan",
+    "maze_arguments",
+    "borrowed_maze",
+    "drive",
+    "maze_start",
+    "maze_move",
+    "maze_observation",
+    "DONE",
+    "NEED_CAPACITY",
+    "RECORDS_FULL",
+    "N_R",
+]
 
 # Records written by the fused loops, one row per episode.
 R_STEPS, R_RETURN, R_CELLS, R_APPENDS, R_MERGES, R_REFUSED, R_DECISIONS = range(7)
@@ -84,22 +96,62 @@ def maze_arguments(maze: CompiledMaze) -> Maze:
     d = maze.dynamics
     fixed = np.array(d.fixed_start if d.fixed_start is not None else (np.nan, np.nan), dtype=np.float64)
     if isinstance(d, GridDynamics):
-        return Maze(False, d.walls, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, 1.0, 0.0, float(d.slip),
-                    np.zeros((0, 2)), 0.0, False, int(maze.max_episode_steps))
-    return Maze(True, d.grid, float(d.goal[0]), float(d.goal[1]), d.starts, fixed, float(d.move), float(d.radius),
-                0.0, d.sonar_directions, float(d.sonar_range), bool(d.observe_sonar), int(maze.max_episode_steps))
+        return Maze(
+            False,
+            d.walls,
+            float(d.goal[0]),
+            float(d.goal[1]),
+            d.starts,
+            fixed,
+            1.0,
+            0.0,
+            float(d.slip),
+            np.zeros((0, 2)),
+            0.0,
+            False,
+            int(maze.max_episode_steps),
+        )
+    return Maze(
+        True,
+        d.grid,
+        float(d.goal[0]),
+        float(d.goal[1]),
+        d.starts,
+        fixed,
+        float(d.move),
+        float(d.radius),
+        0.0,
+        d.sonar_directions,
+        float(d.sonar_range),
+        bool(d.observe_sonar),
+        int(maze.max_episode_steps),
+    )
 
 
 @njit(cache=True, inline="always")
 def borrowed_maze(mz: Maze) -> Maze:
     """``mz`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for the loop's own use."""
     # (Numba's annotation of an @intrinsic's call keeps the typing context, which compiled callers do not pass)
-    return Maze(mz.robot, borrowed(mz.walls), mz.gx, mz.gy, borrowed(mz.starts), mz.fixed, mz.move, mz.radius,  # type: ignore[call-arg]
-                mz.slip, borrowed(mz.dirs), mz.sonar_range, mz.observe_sonar, mz.max_episode_steps)  # type: ignore[call-arg]
+    return Maze(
+        mz.robot,
+        borrowed(mz.walls),
+        mz.gx,
+        mz.gy,
+        borrowed(mz.starts),
+        mz.fixed,
+        mz.move,
+        mz.radius,  # type: ignore[call-arg]
+        mz.slip,
+        borrowed(mz.dirs),
+        mz.sonar_range,
+        mz.observe_sonar,
+        mz.max_episode_steps,
+    )  # type: ignore[call-arg]
 
 
-def drive(maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int,
-          max_records: int) -> tuple[int, np.ndarray]:
+def drive(
+    maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int, max_records: int
+) -> tuple[int, np.ndarray]:
     """Run ``kernel(pos, budget_steps, budget_episodes, rec)`` from the environment's current episode
     until a budget is spent; returns ``(steps, records)`` and leaves the environment where the loop
     stopped. ``grow()`` makes room when the kernel returns ``NEED_CAPACITY``."""
@@ -137,7 +189,9 @@ def maze_move(env_rng, pos, a, mz):
     """One step of the maze from ``pos`` (in place): ``(reward, terminated, collision)``. GridMaze's
     moves mz.slip as its ``step`` makes them mz.slip (from the maze's generator)."""
     if mz.robot:
-        pos[0], pos[1], r, terminated, collision = robot_move(mz.walls, pos[0], pos[1], a, mz.move, mz.radius, mz.gx, mz.gy)
+        pos[0], pos[1], r, terminated, collision = robot_move(
+            mz.walls, pos[0], pos[1], a, mz.move, mz.radius, mz.gx, mz.gy
+        )
     else:
         a = slipped(env_rng, a, mz.slip)
         nx, ny, r, terminated, collision = grid_move(mz.walls, int(pos[0]), int(pos[1]), a, int(mz.gx), int(mz.gy))

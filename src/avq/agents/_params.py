@@ -33,8 +33,9 @@ class ParamIndex(IntEnum):
         return count
 
 
-def pack_params(index: type[ParamIndex], values: Mapping[str, Any], dtype: Any = np.float64,
-                out: np.ndarray | None = None) -> np.ndarray:
+def pack_params(
+    index: type[ParamIndex], values: Mapping[str, Any], dtype: Any = np.float64, out: np.ndarray | None = None
+) -> np.ndarray:
     """The array of ``index``'s parameters: ``out[member] = values[member.name.lower()]``, for every member.
 
     Args:

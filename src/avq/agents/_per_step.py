@@ -21,8 +21,14 @@ class PerStepAgent(BaseAgent):
     _ep_steps: int  # the steps and the return of the episode so far
     _ep_return: float
 
-    def _sarsa_steps(self, max_steps: int, s: Any, a: int, update: Callable[[Any, int, float, Any, bool], tuple],
-                     env_actions: Sequence[Any] | np.ndarray | None = None) -> tuple[Any, int, int, bool]:
+    def _sarsa_steps(
+        self,
+        max_steps: int,
+        s: Any,
+        a: int,
+        update: Callable[[Any, int, float, Any, bool], tuple],
+        env_actions: Sequence[Any] | np.ndarray | None = None,
+    ) -> tuple[Any, int, int, bool]:
         """The primitive steps of an agent that decides at every step (``tabular``, ``grid``, the tile coders).
 
         Steps the environment with action ``a`` (sent as ``env_actions[a]`` if given) at most

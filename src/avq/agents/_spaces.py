@@ -9,8 +9,16 @@ from typing import Any, overload
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["resolve_bounds", "resolve_scale", "auto_scale", "RunningSpread", "AUTO_SCALE_STDS", "per_dimension",
-           "normalize_obs_bounds", "check_box_discrete"]
+__all__ = [
+    "resolve_bounds",
+    "resolve_scale",
+    "auto_scale",
+    "RunningSpread",
+    "AUTO_SCALE_STDS",
+    "per_dimension",
+    "normalize_obs_bounds",
+    "check_box_discrete",
+]
 
 #: ``scale="auto"`` takes this many standard deviations of the observations seen as the range of a
 #: dimension without finite bounds: the width of ±2σ, which holds 95% of a normal distribution (and
@@ -62,8 +70,9 @@ def resolve_bounds(space: spaces.Space, obs_bounds: Sequence[Any] | None) -> tup
     return low, high
 
 
-def auto_scale(space: spaces.Space, obs_bounds: Sequence[Any] | None,
-               every: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def auto_scale(
+    space: spaces.Space, obs_bounds: Sequence[Any] | None, every: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """``scale="auto"`` (or with ``every``, ``scale="spread"``) before any observation: ``(scale, estimated)``.
 
     ``scale`` is ``high - low`` where the bounds (``obs_bounds`` or the space's) are finite, and 1 where
@@ -124,8 +133,9 @@ class RunningSpread:
         return np.sqrt(self.m2 / max(self.count, 1))
 
 
-def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None,
-                  scale_factor: Any = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def scale_setting(
+    space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None, scale_factor: Any = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """An agent's ``scale`` and ``scale_factor`` parameters as ``(scale, estimated, factor)``: ``"auto"`` and
     ``"spread"`` as :func:`auto_scale`, anything else as :func:`resolve_scale` (nothing estimated); then times
     ``factor``, ``scale_factor`` per dimension (:func:`per_dimension`), which the estimates of
@@ -146,8 +156,13 @@ def scale_setting(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | N
     return s * factor, estimated, factor
 
 
-def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarray, spread: RunningSpread,
-                  factor: np.ndarray | float = 1.0) -> bool:
+def refresh_scale(
+    scale: np.ndarray,
+    inv_scale: np.ndarray,
+    estimated: np.ndarray,
+    spread: RunningSpread,
+    factor: np.ndarray | float = 1.0,
+) -> bool:
     """``scale="auto"`` (or ``"spread"``) brought up to date in place: each estimated dimension becomes
     ``AUTO_SCALE_STDS`` standard deviations of the observations counted (where that is > 0) times ``factor``,
     and ``inv_scale`` its inverse. Returns whether anything changed (the caller's cells may then have moved)."""
@@ -163,12 +178,12 @@ def refresh_scale(scale: np.ndarray, inv_scale: np.ndarray, estimated: np.ndarra
 def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """What a saved agent keeps of its metric: ``(meta, arrays)``, the scale in force and what
     ``scale="auto"`` counted of the observations (mean and m2 as rows)."""
-    return ({"scale_count": spread.count},
-            {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])})
+    return ({"scale_count": spread.count}, {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])})
 
 
-def load_scale_state(meta: dict[str, Any], arrays: dict[str, np.ndarray], scale: np.ndarray, estimated: np.ndarray,
-                     spread: RunningSpread) -> None:
+def load_scale_state(
+    meta: dict[str, Any], arrays: dict[str, np.ndarray], scale: np.ndarray, estimated: np.ndarray, spread: RunningSpread
+) -> None:
     """Restore what :func:`scale_state` saved into ``scale`` and ``spread`` (in place). A file from before
     ``scale="auto"`` keeps the scale of the parameters.
 
@@ -217,8 +232,9 @@ def per_dimension(name: str, value: Any, n: int) -> np.ndarray:
     try:
         s = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy()
     except (ValueError, TypeError):
-        raise ValueError(f"{name} must be a number or {n} numbers (one per observation dimension), "
-                         f"not {value!r}") from None
+        raise ValueError(
+            f"{name} must be a number or {n} numbers (one per observation dimension), not {value!r}"
+        ) from None
     bad = np.flatnonzero(~(np.isfinite(s) & (s > 0)))
     if bad.size:
         raise ValueError(f"{name} must be finite and > 0; dimension {int(bad[0])} has {s[bad[0]]}")
@@ -249,11 +265,14 @@ def normalize_obs_bounds(obs_bounds: Sequence[Any] | None) -> list[list[float] |
         except (TypeError, ValueError):
             raise ValueError(f"obs_bounds[{d}] must be a (low, high) pair of numbers or None, not {entry!r}") from None
         if not (np.isfinite(lo) and np.isfinite(hi)):
-            raise ValueError(f"obs_bounds[{d}] is {entry!r}, which is not finite; give finite numbers (low, high), "
-                             "or None to keep the space's bounds for that dimension")
+            raise ValueError(
+                f"obs_bounds[{d}] is {entry!r}, which is not finite; give finite numbers (low, high), "
+                "or None to keep the space's bounds for that dimension"
+            )
         if not hi > lo:
-            raise ValueError(f"obs_bounds[{d}] is {entry!r}, whose low is not below its high; give (low, high) "
-                             "with low < high")
+            raise ValueError(
+                f"obs_bounds[{d}] is {entry!r}, whose low is not below its high; give (low, high) with low < high"
+            )
         out.append([lo, hi])
     return out
 
@@ -274,6 +293,9 @@ def check_box_discrete(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
     if not isinstance(act_space, spaces.Discrete):
         raise ValueError(
             f"{agent} needs a Discrete action space, not {act_space}"
-            + ("; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
-               if isinstance(act_space, spaces.Box) else "")
+            + (
+                "; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
+                if isinstance(act_space, spaces.Box)
+                else ""
+            )
         )

@@ -21,8 +21,20 @@ from numba import njit
 
 from avq._random import below, uniform
 
-__all__ = ["greedy_ties", "nth_tie", "epsilon_greedy", "decide", "sarsa_td_error", "mark_active", "clear_traces",
-           "trace_update", "sarsa_lambda", "table_step", "tile_step", "SarsaParams"]
+__all__ = [
+    "greedy_ties",
+    "nth_tie",
+    "epsilon_greedy",
+    "decide",
+    "sarsa_td_error",
+    "mark_active",
+    "clear_traces",
+    "trace_update",
+    "sarsa_lambda",
+    "table_step",
+    "tile_step",
+    "SarsaParams",
+]
 
 
 @njit(cache=True, inline="always")
@@ -106,8 +118,18 @@ def clear_traces(E: np.ndarray, act: np.ndarray) -> None:
 
 
 @njit(cache=True, inline="always")
-def trace_update(Q: np.ndarray, E: np.ndarray, rows: np.ndarray, n_rows: int, s_tm1: int, a_tm1: int,
-                 delta: float, alpha: float, trace_decay: float, replacing: bool) -> None:
+def trace_update(
+    Q: np.ndarray,
+    E: np.ndarray,
+    rows: np.ndarray,
+    n_rows: int,
+    s_tm1: int,
+    a_tm1: int,
+    delta: float,
+    alpha: float,
+    trace_decay: float,
+    replacing: bool,
+) -> None:
     """The Sarsa(λ) update in place (SPEC §5), over ``rows[:n_rows]`` (every row whose trace may be non-zero).
 
     ``E[s, a] = 1`` (replacing) or ``+= 1`` (accumulating); ``Q += alpha * delta * E``;
@@ -127,8 +149,17 @@ def trace_update(Q: np.ndarray, E: np.ndarray, rows: np.ndarray, n_rows: int, s_
 
 
 @njit(cache=True, inline="always")
-def sarsa_lambda(Q: np.ndarray, E: np.ndarray, act: np.ndarray, s_tm1: int, a_tm1: int, delta: float,
-                 alpha: float, trace_decay: float, replacing: bool) -> None:
+def sarsa_lambda(
+    Q: np.ndarray,
+    E: np.ndarray,
+    act: np.ndarray,
+    s_tm1: int,
+    a_tm1: int,
+    delta: float,
+    alpha: float,
+    trace_decay: float,
+    replacing: bool,
+) -> None:
     """:func:`trace_update` over the active list ``act``, with ``s_tm1`` added to it."""
     mark_active(act, s_tm1)
     trace_update(Q, E, act[1:], act[0], s_tm1, a_tm1, delta, alpha, trace_decay, replacing)

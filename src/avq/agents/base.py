@@ -48,12 +48,18 @@ class NotFiniteError(ValueError):
     the episode. Raised by :meth:`BaseAgent.learn` before the agent learns anything from that step."""
 
 
-def episode_record(steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any = 0, refused: Any = 0,
-                   decisions: Any = None) -> EpisodeRecord:
+def episode_record(
+    steps: Any, ret: Any, n_cells: Any, appends: Any, merges: Any = 0, refused: Any = 0, decisions: Any = None
+) -> EpisodeRecord:
     """One episode's record with plain Python numbers; ``decisions`` defaults to ``steps``."""
     return {
-        "steps": int(steps), "return": float(ret), "n_cells": int(n_cells), "appends": int(appends),
-        "merges": int(merges), "refused": int(refused), "decisions": int(steps if decisions is None else decisions),
+        "steps": int(steps),
+        "return": float(ret),
+        "n_cells": int(n_cells),
+        "appends": int(appends),
+        "merges": int(merges),
+        "refused": int(refused),
+        "decisions": int(steps if decisions is None else decisions),
     }
 
 
@@ -155,9 +161,11 @@ class BaseAgent:
 
     def _refuse_non_finite(self, obs: Any, r: Any, step: int) -> None:
         what = f"reward {r!r}" if not math.isfinite(r) else f"observation {np.asarray(obs).tolist()!r}"
-        raise NotFiniteError(f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
-                             "avq learns only from finite observations and rewards (check the environment, "
-                             "or wrap it to end the episode instead)")
+        raise NotFiniteError(
+            f"{what} at step {step} of episode {self.num_episodes + 1} is not finite; "
+            "avq learns only from finite observations and rewards (check the environment, "
+            "or wrap it to end the episode instead)"
+        )
 
     # -- learning -----------------------------------------------------------------------
     def learn(
@@ -217,16 +225,19 @@ class BaseAgent:
         """Whether ``learn`` stopped inside an episode (the next call goes on with it)."""
         return self._in_episode
 
-    def _learn_fused_chunk(self, fused: Callable[[int, int, int], tuple[int, np.ndarray, bool]],
-                           call: _LearnCall) -> bool:
+    def _learn_fused_chunk(
+        self, fused: Callable[[int, int, int], tuple[int, np.ndarray, bool]], call: _LearnCall
+    ) -> bool:
         """Many steps and episodes in one compiled call (see AVQSarsa's fused loops); True: a callback stops.
 
         The chunk ends at the budget and where a callback must see an episode.
         """
-        budget = min(call.episodes_left if call.episodes_left is not None else NEVER,
-                     call.callbacks.episodes_to_next_call(self))
-        n, rows, self._in_episode = fused(call.steps_left if call.steps_left is not None else NEVER, budget,
-                                          min(budget, 1 << 16))
+        budget = min(
+            call.episodes_left if call.episodes_left is not None else NEVER, call.callbacks.episodes_to_next_call(self)
+        )
+        n, rows, self._in_episode = fused(
+            call.steps_left if call.steps_left is not None else NEVER, budget, min(budget, 1 << 16)
+        )
         self.num_timesteps += n
         call.count_steps(self, n)
         elapsed = call.lap()
@@ -290,7 +301,9 @@ class BaseAgent:
             raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() before predict()")
         check_bool("deterministic", deterministic)
         if isinstance(observation, tuple) and len(observation) == 2 and isinstance(observation[1], dict):
-            raise ValueError("predict got an (observation, info) pair; pass the observation alone: obs, info = env.reset()")
+            raise ValueError(
+                "predict got an (observation, info) pair; pass the observation alone: obs, info = env.reset()"
+            )
         try:
             obs = np.asarray(observation, dtype=np.float64)
         except (TypeError, ValueError):
@@ -397,8 +410,9 @@ class _LearnCall:
     t0: float
 
     def budget_left(self) -> bool:
-        return ((self.steps_left is None or self.steps_left > 0)
-                and (self.episodes_left is None or self.episodes_left > 0))
+        return (self.steps_left is None or self.steps_left > 0) and (
+            self.episodes_left is None or self.episodes_left > 0
+        )
 
     def count_steps(self, agent: BaseAgent, n: int) -> None:
         if self.steps_left is not None:

@@ -29,8 +29,15 @@ from avq.agents._history import HISTORY_FIELDS
 if TYPE_CHECKING:
     from avq.agents.base import BaseAgent
 
-__all__ = ["BaseCallback", "CallbackList", "CheckpointCallback", "FunctionCallback", "ProgressBarCallback",
-           "as_callback", "PROGRESS_COLUMNS"]
+__all__ = [
+    "BaseCallback",
+    "CallbackList",
+    "CheckpointCallback",
+    "FunctionCallback",
+    "ProgressBarCallback",
+    "as_callback",
+    "PROGRESS_COLUMNS",
+]
 
 #: The columns of ``progress.csv``: every field of the per-episode record.
 PROGRESS_COLUMNS = HISTORY_FIELDS
@@ -177,6 +184,7 @@ def as_callback(callback: Any, progress_bar: bool = False) -> CallbackList:
         elif callable(item):
             out.append(FunctionCallback(item))
         else:
-            raise TypeError(f"callback must be a BaseCallback or callable as callback(agent, record), "
-                            f"not {type(item).__name__}")
+            raise TypeError(
+                f"callback must be a BaseCallback or callable as callback(agent, record), not {type(item).__name__}"
+            )
     return CallbackList(out)

@@ -30,12 +30,24 @@ from avq.agents.baselines import GridSarsa, TabularSarsa, TileSarsa
 from avq.agents.plan import PlanningAVQ, PrioritizedSweeping
 from avq.agents.plan.model import PLANNING_PARAMS
 
-__all__ = ["AGENTS", "DEFAULTS", "ENTRIES", "SUMMARIES", "DefaultsUsed", "Entry", "agent_class", "agent_defaults",
-           "defaults_key", "make_agent"]
+__all__ = [
+    "AGENTS",
+    "DEFAULTS",
+    "ENTRIES",
+    "SUMMARIES",
+    "DefaultsUsed",
+    "Entry",
+    "agent_class",
+    "agent_defaults",
+    "defaults_key",
+    "make_agent",
+]
 
 #: The classes a data file may name.
-_CLASSES: dict[str, type[BaseAgent]] = {cls.__name__: cls for cls in (
-    AVQSarsa, PlanningAVQ, TabularSarsa, GridSarsa, TileSarsa, PrioritizedSweeping, ActionCodebookSarsa)}
+_CLASSES: dict[str, type[BaseAgent]] = {
+    cls.__name__: cls
+    for cls in (AVQSarsa, PlanningAVQ, TabularSarsa, GridSarsa, TileSarsa, PrioritizedSweeping, ActionCodebookSarsa)
+}
 
 
 class Entry(NamedTuple):
@@ -62,8 +74,11 @@ def _read(name: str) -> dict[str, Any]:
 
 
 def _load_all() -> dict[str, _Agent]:
-    names = sorted(p.name[:-len(".yaml")] for p in resources.files("avq.agents").joinpath("defaults").iterdir()
-                   if p.name.endswith(".yaml"))
+    names = sorted(
+        p.name[: -len(".yaml")]
+        for p in resources.files("avq.agents").joinpath("defaults").iterdir()
+        if p.name.endswith(".yaml")
+    )
     raw = {name: _read(name) for name in names}
     done: dict[tuple[str, str], Entry] = {}
 
@@ -82,8 +97,10 @@ def _load_all() -> dict[str, _Agent]:
         done[(name, key)] = Entry(cls, params, e["reason"], e["results"])
         return done[(name, key)]
 
-    return {name: _Agent(" ".join(data["summary"].split()), {key: resolve(name, key) for key in data["entries"]})
-            for name, data in raw.items()}
+    return {
+        name: _Agent(" ".join(data["summary"].split()), {key: resolve(name, key) for key in data["entries"]})
+        for name, data in raw.items()
+    }
 
 
 _TABLE = _load_all()
@@ -92,10 +109,12 @@ _TABLE = _load_all()
 ENTRIES: dict[str, dict[str, Entry]] = {name: agent.entries for name, agent in _TABLE.items()}
 #: name -> {entry key -> the defaults there}.
 DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
-    name: {key: e.params for key, e in entries.items()} for name, entries in ENTRIES.items()}
+    name: {key: e.params for key, e in entries.items()} for name, entries in ENTRIES.items()
+}
 #: name -> (its class, its ``"*"`` defaults): the one table of names.
 AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
-    name: (entries["*"].cls, entries["*"].params) for name, entries in ENTRIES.items()}
+    name: (entries["*"].cls, entries["*"].params) for name, entries in ENTRIES.items()
+}
 #: name -> one paragraph on what the agent is (the reference's section per agent).
 SUMMARIES: dict[str, str] = {name: agent.summary for name, agent in _TABLE.items()}
 
@@ -113,8 +132,10 @@ class DefaultsUsed(NamedTuple):
     def __str__(self) -> str:
         which = "the general defaults" if self.key == "*" else f"the {self.key} defaults"
         explicit = ", ".join(f"{k}={v!r}" for k, v in self.explicit.items()) or "none"
-        return (f"agent {self.name} on {self.env_id or 'an unregistered environment'}: {which} of {self.name} "
-                f"(avq/agents/defaults/{self.name}.yaml, entry {self.key!r}); explicit: {explicit}")
+        return (
+            f"agent {self.name} on {self.env_id or 'an unregistered environment'}: {which} of {self.name} "
+            f"(avq/agents/defaults/{self.name}.yaml, entry {self.key!r}); explicit: {explicit}"
+        )
 
 
 def defaults_key(name: str, env_id: str | None = None) -> str:
@@ -186,8 +207,10 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
         plans = lambda n: set(PLANNING_PARAMS) <= set(agent_class(n, env_id)._param_names())  # noqa: E731
         with_model = ", ".join(repr(n) for n in AGENTS if plans(n))
         where = f" on {env_id or 'this environment'}" if varies else ""
-        raise ValueError(f"{planning[0]!r} is an option of planning over a learned model, and agent {name!r} has no "
-                         f"model{where}; the agents that plan{where} are {with_model}")
+        raise ValueError(
+            f"{planning[0]!r} is an option of planning over a learned model, and agent {name!r} has no "
+            f"model{where}; the agents that plan{where} are {with_model}"
+        )
     if unknown:
         raise ValueError(
             f"unknown parameter {unknown[0]!r} for agent {name!r}"

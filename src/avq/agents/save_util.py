@@ -72,7 +72,11 @@ def _describe_space(space: dict[str, Any] | None) -> str:
     if not space:
         return "none recorded"
     if space.get("type") == "Discrete":
-        return f"Discrete({space['n']})" if space.get("start", 0) == 0 else f"Discrete({space['n']}, start={space['start']})"
+        return (
+            f"Discrete({space['n']})"
+            if space.get("start", 0) == 0
+            else f"Discrete({space['n']}, start={space['start']})"
+        )
     if space.get("type") == "Box":
         return f"Box(low={space['low']}, high={space['high']})"
     return str(space.get("type"))
@@ -187,8 +191,9 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     return meta, arrays
 
 
-def load(path: str | os.PathLike, env: gym.Env | str | None = None, *,
-         classes: dict[str, type[BaseAgent]]) -> BaseAgent:
+def load(
+    path: str | os.PathLike, env: gym.Env | str | None = None, *, classes: dict[str, type[BaseAgent]]
+) -> BaseAgent:
     """Load an avq agent saved with ``agent.save(path)`` (``avq.load`` and ``Agent.load`` call this).
 
     Args:
@@ -213,15 +218,19 @@ def load(path: str | os.PathLike, env: gym.Env | str | None = None, *,
     cls = classes.get(meta.get("class", ""))
     if cls is None:
         want = next(iter(classes))  # (the class asked for; its subclasses follow)
-        raise ValueError(f"{path}: holds a {meta.get('class')}, not a {want}" if want != "BaseAgent"
-                         else f"{path}: unknown agent class {meta.get('class')!r}")
+        raise ValueError(
+            f"{path}: holds a {meta.get('class')}, not a {want}"
+            if want != "BaseAgent"
+            else f"{path}: unknown agent class {meta.get('class')!r}"
+        )
     if env is None:
         if not meta.get("env_id"):
             raise ValueError(f"{path}: the model records no environment id; pass env= to load it")
         make = meta.get("env_make")
         if meta.get("format_version", 1) >= 2 and make is None:
-            raise ValueError(f"{path}: the environment's gymnasium.make arguments could not be saved; "
-                             "pass env= to load it")
+            raise ValueError(
+                f"{path}: the environment's gymnasium.make arguments could not be saved; pass env= to load it"
+            )
         try:
             env = as_env(meta["env_id"], **(make or {}))
         except ValueError as exc:

@@ -54,8 +54,18 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-_CONFIG_KEYS = {"env", "env_kwargs", "agent", "params", "seed", "episodes", "timesteps", "out", "checkpoint_every",
-                "avq_version"}
+_CONFIG_KEYS = {
+    "env",
+    "env_kwargs",
+    "agent",
+    "params",
+    "seed",
+    "episodes",
+    "timesteps",
+    "out",
+    "checkpoint_every",
+    "avq_version",
+}
 
 
 def key_values(pairs: list[str], flag: str) -> dict:
@@ -80,10 +90,15 @@ def key_values(pairs: list[str], flag: str) -> dict:
             raise UsageError(f"{flag} {key}: cannot read the value {text!r} as YAML")
         if not read:
             inner = text.strip()
-            quoted = (f"[{', '.join(repr(v.strip()) for v in inner[1:-1].split(','))}]"
-                      if inner.startswith("[") and inner.endswith("]") else repr(inner))
-            raise UsageError(f"{flag} {key}: cannot read the value {text!r}: in YAML '#' starts a comment; "
-                             f"quote the text that holds it: {flag} \"{key}={quoted}\"")
+            quoted = (
+                f"[{', '.join(repr(v.strip()) for v in inner[1:-1].split(','))}]"
+                if inner.startswith("[") and inner.endswith("]")
+                else repr(inner)
+            )
+            raise UsageError(
+                f"{flag} {key}: cannot read the value {text!r}: in YAML '#' starts a comment; "
+                f'quote the text that holds it: {flag} "{key}={quoted}"'
+            )
         out[key] = None if isinstance(value, str) and value in ("None", "none") else value  # (Python's spelling)
     return out
 
@@ -137,12 +152,23 @@ def cmd_train(args: argparse.Namespace) -> int:
     from avq.runs import resume_train, train
 
     if args.resume:
-        given = [flag for flag, value in (("--env", args.env), ("--agent", args.agent), ("--episodes", args.episodes),
-                                          ("--timesteps", args.timesteps), ("--seed", args.seed), ("--out", args.out),
-                                          ("--set", args.set), ("--env-kwargs", args.env_kwargs),
-                                          ("--config", args.config), ("--checkpoint-every", args.checkpoint_every),
-                                          ("--animate", args.animate or None))
-                 if value is not None]
+        given = [
+            flag
+            for flag, value in (
+                ("--env", args.env),
+                ("--agent", args.agent),
+                ("--episodes", args.episodes),
+                ("--timesteps", args.timesteps),
+                ("--seed", args.seed),
+                ("--out", args.out),
+                ("--set", args.set),
+                ("--env-kwargs", args.env_kwargs),
+                ("--config", args.config),
+                ("--checkpoint-every", args.checkpoint_every),
+                ("--animate", args.animate or None),
+            )
+            if value is not None
+        ]
         if given:
             raise UsageError(f"--resume continues a run as its config.yml says; drop {given[0]}")
         if os.path.isfile(args.resume):
@@ -179,8 +205,17 @@ def cmd_train(args: argparse.Namespace) -> int:
     recorder = _partition_recorder(env_id, agent, env_kwargs) if args.animate else None
     try:
         summary = train(
-            env_id, agent, episodes=episodes, timesteps=timesteps, seed=seed, params=params,
-            env_kwargs=env_kwargs, out=out, progress=_progress(args), checkpoint_every=every, log=print,
+            env_id,
+            agent,
+            episodes=episodes,
+            timesteps=timesteps,
+            seed=seed,
+            params=params,
+            env_kwargs=env_kwargs,
+            out=out,
+            progress=_progress(args),
+            checkpoint_every=every,
+            log=print,
             callback=recorder,
         )
     except KeyboardInterrupt:
@@ -192,8 +227,12 @@ def cmd_train(args: argparse.Namespace) -> int:
         from avq.plotting import animate_partition
 
         views = recorder.views()
-        gif = animate_partition(views, recorder.env, os.path.join(summary["out"], "partition.gif"),
-                                title=f"{agent} on {env_id}, seed {seed}")
+        gif = animate_partition(
+            views,
+            recorder.env,
+            os.path.join(summary["out"], "partition.gif"),
+            title=f"{agent} on {env_id}, seed {seed}",
+        )
         print(f"wrote {gif} ({len(views)} frames)")
     return 0
 
@@ -209,12 +248,16 @@ def _partition_recorder(env_id: str, agent: str, env_kwargs: dict):
     from avq.runs import make_env
 
     if env_id not in _ANIMATED_ENVS:
-        raise UsageError(f"--animate draws the partition of a maze ({' or '.join(_ANIMATED_ENVS)}), not of {env_id}; "
-                         "drop --animate or choose one of those")
+        raise UsageError(
+            f"--animate draws the partition of a maze ({' or '.join(_ANIMATED_ENVS)}), not of {env_id}; "
+            "drop --animate or choose one of those"
+        )
     if agent in AGENTS and not has_partition(agent_class(agent, env_id)):
         with_cells = ", ".join(name for name in AGENTS if has_partition(agent_class(name, env_id)))
-        raise UsageError(f"--animate draws an agent's cells, and {agent} has none; drop --animate or choose an "
-                         f"agent with cells: {with_cells}")
+        raise UsageError(
+            f"--animate draws an agent's cells, and {agent} has none; drop --animate or choose an "
+            f"agent with cells: {with_cells}"
+        )
     return PartitionRecorder(make_env(env_id, env_kwargs))
 
 
@@ -250,8 +293,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     from avq.runs import evaluate_run
 
-    report = evaluate_run(args.run_dir, episodes=args.episodes, seed=args.seed, max_steps=args.max_steps,
-                          progress=_progress(args))
+    report = evaluate_run(
+        args.run_dir, episodes=args.episodes, seed=args.seed, max_steps=args.max_steps, progress=_progress(args)
+    )
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -264,13 +308,17 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         line += f", success {report['success_rate']:.0%}"
     print(line)
     if report["capped"]:
-        print(f"{report['capped']} of {report['episodes']} episodes did not end within --max-steps "
-              f"{report['max_steps']} and were cut there (their return is that of the first {report['max_steps']} "
-              "steps)")
+        print(
+            f"{report['capped']} of {report['episodes']} episodes did not end within --max-steps "
+            f"{report['max_steps']} and were cut there (their return is that of the first {report['max_steps']} "
+            "steps)"
+        )
     if "maze_success_rate" in report:
         ratio = report["maze_path_ratio"]
-        print(f"greedy policy from every start: success {report['maze_success_rate']:.0%}, "
-              f"path ratio {'-' if ratio is None else f'{ratio:.2f}'}")
+        print(
+            f"greedy policy from every start: success {report['maze_success_rate']:.0%}, "
+            f"path ratio {'-' if ratio is None else f'{ratio:.2f}'}"
+        )
     return 0
 
 
@@ -294,24 +342,42 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.metric is not None:
         raise UsageError("--metric is for 'avq sweep report DIR'; set 'metric' in the config for the default")
     if os.path.isdir(args.target[0]):
-        raise UsageError(f"{args.target[0]} is a directory; give the sweep's YAML config "
-                         "(or 'avq sweep report DIR' to rank a finished sweep)")
+        raise UsageError(
+            f"{args.target[0]} is a directory; give the sweep's YAML config "
+            "(or 'avq sweep report DIR' to rank a finished sweep)"
+        )
     if not os.path.isfile(args.target[0]):
         raise UsageError(f"no such sweep config: {args.target[0]}")
     try:
-        rows = run_sweep(args.target[0], args.out, backend=args.backend, address=args.address, jobs=args.jobs,
-                     progress=_progress(args), log=print)
+        rows = run_sweep(
+            args.target[0],
+            args.out,
+            backend=args.backend,
+            address=args.address,
+            jobs=args.jobs,
+            progress=_progress(args),
+            log=print,
+        )
     except SweepInterrupted as stop:
         again = ["avq", "sweep", args.target[0], "--out", args.out]
-        for flag, value in (("--backend", None if args.backend == "local" else args.backend),
-                            ("--address", args.address), ("--jobs", args.jobs)):
+        for flag, value in (
+            ("--backend", None if args.backend == "local" else args.backend),
+            ("--address", args.address),
+            ("--jobs", args.jobs),
+        ):
             again += [flag, str(value)] if value is not None else []
-        print(f"avq: interrupted; {stop.finished} of {stop.total} trials finished and are kept in {args.out}. "
-              f"Continue the sweep with: {shlex.join(again)}", file=sys.stderr)
+        print(
+            f"avq: interrupted; {stop.finished} of {stop.total} trials finished and are kept in {args.out}. "
+            f"Continue the sweep with: {shlex.join(again)}",
+            file=sys.stderr,
+        )
         return 130
     failed = [r for r in rows if r["status"] != "ok"]
-    written = [os.path.join(args.out, name) for name in ("results.csv", "curves.png")
-               if os.path.exists(os.path.join(args.out, name))]
+    written = [
+        os.path.join(args.out, name)
+        for name in ("results.csv", "curves.png")
+        if os.path.exists(os.path.join(args.out, name))
+    ]
     print(f"{len(rows) - len(failed)} of {len(rows)} trials finished, {len(failed)} failed -> {', '.join(written)}")
     for r in failed[:5]:
         print(f"  failed: {r['trial']}: {r['error']}", file=sys.stderr)

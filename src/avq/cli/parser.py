@@ -82,12 +82,19 @@ def build_parser() -> _Parser:
     rep.add_argument("--agents", default="avq-paper,avq,tabular", help="comma-separated agent names")
     rep.add_argument("--start", choices=["random", "fixed"], default="random", help="start positions (default random)")
     rep.add_argument("--out", default="reproduce-out", help="output directory (default reproduce-out)")
-    rep.add_argument("--jobs", type=_positive_int("--jobs"), default=1,
-                     help="parallel processes (default 1: the compiled loops make one process fastest here)")
+    rep.add_argument(
+        "--jobs",
+        type=_positive_int("--jobs"),
+        default=1,
+        help="parallel processes (default 1: the compiled loops make one process fastest here)",
+    )
     rep.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
-    rep.add_argument("--no-animation", action="store_true",
-                     help="do not write partition.gif, the animation of the headline agent's cells and greedy "
-                     "actions as it learns (on its best seed; a few seconds)")
+    rep.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="do not write partition.gif, the animation of the headline agent's cells and greedy "
+        "actions as it learns (on its best seed; a few seconds)",
+    )
     rep.set_defaults(func=cmd_reproduce)
 
     tr = command(
@@ -107,15 +114,24 @@ def build_parser() -> _Parser:
     tr.add_argument("--seed", type=_nonnegative_int("--seed"), help="seed (default 0)")
     tr.add_argument("--out", help="run directory (default runs/{env}__{agent}__{seed}__{time})")
     tr.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter (repeatable)")
-    tr.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make (repeatable)")
+    tr.add_argument(
+        "--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make (repeatable)"
+    )
     tr.add_argument("--config", help="YAML file with env, env_kwargs, agent, params, seed, episodes|timesteps, out")
-    tr.add_argument("--checkpoint-every", type=_positive_int("--checkpoint-every"), metavar="N",
-                    help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)")
+    tr.add_argument(
+        "--checkpoint-every",
+        type=_positive_int("--checkpoint-every"),
+        metavar="N",
+        help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)",
+    )
     tr.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR from its last checkpoint")
-    tr.add_argument("--animate", action="store_true",
-                    help="also write DIR/partition.gif: the cells and their greedy actions as they learn, up to "
-                    "about 100 frames evenly spaced over the episodes (avq/GridMaze-v0 and avq/RobotMaze-v0; "
-                    "agents with cells)")
+    tr.add_argument(
+        "--animate",
+        action="store_true",
+        help="also write DIR/partition.gif: the cells and their greedy actions as they learn, up to "
+        "about 100 frames evenly spaced over the episodes (avq/GridMaze-v0 and avq/RobotMaze-v0; "
+        "agents with cells)",
+    )
     tr.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     tr.set_defaults(func=cmd_train)
 
@@ -126,30 +142,52 @@ def build_parser() -> _Parser:
         "DIR/results.csv and DIR/curves.png (exit code 1 if a trial failed); the same command continues a "
         "stopped sweep. avq sweep report DIR ranks the configurations.",
     )
-    sw.add_argument("target", nargs="+", metavar="CONFIG.yml|report DIR",
-                    help="the sweep's YAML config, or 'report' and a sweep directory")
+    sw.add_argument(
+        "target",
+        nargs="+",
+        metavar="CONFIG.yml|report DIR",
+        help="the sweep's YAML config, or 'report' and a sweep directory",
+    )
     sw.add_argument("--out", help="the sweep's directory")
-    sw.add_argument("--backend", choices=["local", "ray", "dask"], default="local",
-                    help="local processes (default), a Ray cluster or a Dask cluster")
-    sw.add_argument("--address", help="cluster address (ray: as for ray.init; dask: the scheduler); "
-                    "without one a local cluster is started")
+    sw.add_argument(
+        "--backend",
+        choices=["local", "ray", "dask"],
+        default="local",
+        help="local processes (default), a Ray cluster or a Dask cluster",
+    )
+    sw.add_argument(
+        "--address",
+        help="cluster address (ray: as for ray.init; dask: the scheduler); without one a local cluster is started",
+    )
     sw.add_argument("--jobs", type=_positive_int("--jobs"), help="parallel workers (default: CPU count)")
     sw.add_argument("--metric", help="report: the metric to rank by (default: the config's, else final_return)")
     sw.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     sw.set_defaults(func=cmd_sweep)
 
-    ev = command("evaluate", help="evaluate a trained run's greedy policy",
-                        description="Load DIR/model.zip (or a model file) and report the mean and spread of the "
-                        "return. An episode that the environment does not end within --max-steps steps is cut "
-                        "there, and the report says how many were (capped in --json).")
-    ev.add_argument("run_dir", metavar="DIR|MODEL.zip",
-                    help="a directory written by 'avq train', or a model file written by agent.save "
-                    "(such as avq reproduce's models/NAME__seedS.zip)")
+    ev = command(
+        "evaluate",
+        help="evaluate a trained run's greedy policy",
+        description="Load DIR/model.zip (or a model file) and report the mean and spread of the "
+        "return. An episode that the environment does not end within --max-steps steps is cut "
+        "there, and the report says how many were (capped in --json).",
+    )
+    ev.add_argument(
+        "run_dir",
+        metavar="DIR|MODEL.zip",
+        help="a directory written by 'avq train', or a model file written by agent.save "
+        "(such as avq reproduce's models/NAME__seedS.zip)",
+    )
     ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
-    ev.add_argument("--seed", type=_nonnegative_int("--seed"), default=0,
-                    help="seed of the evaluation episodes (default 0)")
-    ev.add_argument("--max-steps", type=_positive_int("--max-steps"), default=100_000, metavar="N",
-                    help="cut an episode the environment has not ended after N steps (default 100000)")
+    ev.add_argument(
+        "--seed", type=_nonnegative_int("--seed"), default=0, help="seed of the evaluation episodes (default 0)"
+    )
+    ev.add_argument(
+        "--max-steps",
+        type=_positive_int("--max-steps"),
+        default=100_000,
+        metavar="N",
+        help="cut an episode the environment has not ended after N steps (default 100000)",
+    )
     ev.add_argument("--json", action="store_true", help="print JSON")
     ev.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     ev.set_defaults(func=cmd_evaluate)

@@ -10,8 +10,18 @@ from avq.envs.grid_maze import GridMaze
 from avq.envs.layouts import MAPS, Layout, load_layout, parse_layout, random_layout, refine_layout
 from avq.envs.robot_maze import RobotMaze
 
-__all__ = ["as_env", "GridMaze", "RobotMaze", "MAPS", "Layout", "load_layout", "parse_layout", "random_layout",
-           "refine_layout", "register_envs"]
+__all__ = [
+    "as_env",
+    "GridMaze",
+    "RobotMaze",
+    "MAPS",
+    "Layout",
+    "load_layout",
+    "parse_layout",
+    "random_layout",
+    "refine_layout",
+    "register_envs",
+]
 
 
 def register_envs() -> None:

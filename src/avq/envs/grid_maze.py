@@ -149,8 +149,11 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
     ) -> None:
         self.layout: Layout = load_layout(layout)
         check_start(self.layout, start)
-        if isinstance(slip, bool) or not isinstance(slip, (int, float, np.integer, np.floating)) \
-                or not 0.0 <= float(slip) < 1.0:
+        if (
+            isinstance(slip, bool)
+            or not isinstance(slip, (int, float, np.integer, np.floating))
+            or not 0.0 <= float(slip) < 1.0
+        ):
             raise ValueError(f"slip must be a probability in [0, 1), not {slip!r} (0: deterministic moves)")
         self._set_render_mode(render_mode)
         self._start_mode = start
@@ -169,7 +172,8 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         if start == "fixed" and self.layout.start is not None:  # (check_start: "fixed" needs a start)
             fixed_start = (int(self.layout.start[0]), int(self.layout.start[1]))
         self.dynamics = GridDynamics(
-            walls=read_only(self.layout.walls), goal=(int(self._gx), int(self._gy)),
+            walls=read_only(self.layout.walls),
+            goal=(int(self._gx), int(self._gy)),
             starts=read_only(self._starts.astype(np.int64)),
             fixed_start=fixed_start,
             slip=float(slip),
@@ -203,7 +207,8 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         if self.dynamics.slip > 0.0:  # (the compiled rule run by Python: a Generator is slow to hand to Numba)
             a = slipped.py_func(self.np_random, a, self.dynamics.slip)
         self._x, self._y, reward, terminated, collision = grid_move(
-            self.layout.walls, self._x, self._y, a, self._gx, self._gy)
+            self.layout.walls, self._x, self._y, a, self._gx, self._gy
+        )
         return self._obs(), reward, terminated, False, self._info(collision)
 
     # -- helpers -----------------------------------------------------------------------

@@ -16,8 +16,19 @@ from typing import TypeAlias
 
 import numpy as np
 
-__all__ = ["MAPS", "Layout", "LayoutSpec", "parse_layout", "load_layout", "layout_text", "layout_image", "COLOURS",
-           "check_start", "random_layout", "refine_layout"]
+__all__ = [
+    "MAPS",
+    "Layout",
+    "LayoutSpec",
+    "parse_layout",
+    "load_layout",
+    "layout_text",
+    "layout_image",
+    "COLOURS",
+    "check_start",
+    "random_layout",
+    "refine_layout",
+]
 
 #: Colours of the maze renderings (RGB).
 COLOURS = {
@@ -174,8 +185,7 @@ def parse_layout(rows: Sequence[str], name: str = "<custom>") -> Layout:
         shown = ", ".join(f"({x}, {y})" for x, y in cut_off[:5])
         more = f" and {len(cut_off) - 5} more" if len(cut_off) > 5 else ""
         raise ValueError(
-            f"layout {name}: free positions cannot reach the goal: {shown}{more}; "
-            "wall them off or open a path"
+            f"layout {name}: free positions cannot reach the goal: {shown}{more}; wall them off or open a path"
         )
     return Layout(
         name=name,
@@ -204,9 +214,7 @@ def load_layout(layout: LayoutSpec) -> Layout:
             except (OSError, UnicodeDecodeError) as exc:
                 raise ValueError(f"layout {text}: cannot read the file ({exc})") from None
             return parse_layout(content.splitlines(), name=text)
-        raise ValueError(
-            f"layout {text!r} is neither a preset ({', '.join(sorted(MAPS))}) nor a readable file"
-        )
+        raise ValueError(f"layout {text!r} is neither a preset ({', '.join(sorted(MAPS))}) nor a readable file")
     try:
         rows = [str(r) for r in layout]
     except TypeError:
@@ -244,8 +252,9 @@ def check_start(layout: Layout, start: str) -> None:
         )
 
 
-def random_layout(width: int, height: int, wall_density: float = 0.25, seed: int | None = 0,
-                  max_segment: int | None = None) -> list[str]:
+def random_layout(
+    width: int, height: int, wall_density: float = 0.25, seed: int | None = 0, max_segment: int | None = None
+) -> list[str]:
     """A random maze of ``width`` x ``height`` squares (border included), seeded and reproducible.
 
     Wall segments of random length (1 to ``max_segment`` squares, default a
@@ -290,7 +299,7 @@ def random_layout(width: int, height: int, wall_density: float = 0.25, seed: int
     free = np.argwhere(~walls)
     gy, gx = (int(v) for v in free[int(rng.integers(len(free)))])
     rows = ["".join("#" if walls[y, x] else "." for x in range(int(width))) for y in range(int(height))]
-    rows[gy] = rows[gy][:gx] + "G" + rows[gy][gx + 1:]
+    rows[gy] = rows[gy][:gx] + "G" + rows[gy][gx + 1 :]
     return rows
 
 

@@ -40,13 +40,14 @@ def grid_frame(layout: Layout, position: tuple[int, int], cell: int = 16) -> np.
     yy, xx = np.mgrid[0:cell, 0:cell]
     r = cell / 2 - 0.5
     disc = (xx - r) ** 2 + (yy - r) ** 2 <= (0.75 * r) ** 2
-    block = img[y * cell:(y + 1) * cell, x * cell:(x + 1) * cell]
+    block = img[y * cell : (y + 1) * cell, x * cell : (x + 1) * cell]
     block[disc] = FRAME_COLOURS["robot"]
     return img
 
 
-def robot_frame(layout: Layout, x: float, y: float, radius: float, directions: np.ndarray, ranges: np.ndarray,
-                scale: int = 32) -> np.ndarray:
+def robot_frame(
+    layout: Layout, x: float, y: float, radius: float, directions: np.ndarray, ranges: np.ndarray, scale: int = 32
+) -> np.ndarray:
     """RobotMaze's frame: walls dark, goal green, the robot a red disc, each beam a line from its surface to its range.
 
     Args:

@@ -28,8 +28,20 @@ from numba import njit
 
 from avq.envs.grid_maze import BUMP_REWARD, GOAL_REWARD, MOVE_REWARD
 
-__all__ = ["RobotDynamics", "robot_move", "random_start", "sonar_ranges", "sonar_directions", "padded_walls",
-           "disc_collides", "in_goal", "cast_ray", "lattice_distances", "N_SONARS", "EPS"]
+__all__ = [
+    "RobotDynamics",
+    "robot_move",
+    "random_start",
+    "sonar_ranges",
+    "sonar_directions",
+    "padded_walls",
+    "disc_collides",
+    "in_goal",
+    "cast_ray",
+    "lattice_distances",
+    "N_SONARS",
+    "EPS",
+]
 
 #: Number of sonar beams (the Sensus 300 ring of the Nomad 200, docs/explanation/paper.md#the-maze).
 N_SONARS = 16

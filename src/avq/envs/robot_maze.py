@@ -34,8 +34,18 @@ from avq.envs.robot_geometry import (
     sonar_ranges,
 )
 
-__all__ = ["RobotMaze", "RobotDynamics", "robot_move", "random_start", "sonar_ranges", "N_SONARS", "NORTH", "EAST",
-           "SOUTH", "WEST"]
+__all__ = [
+    "RobotMaze",
+    "RobotDynamics",
+    "robot_move",
+    "random_start",
+    "sonar_ranges",
+    "N_SONARS",
+    "NORTH",
+    "EAST",
+    "SOUTH",
+    "WEST",
+]
 
 
 class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
@@ -173,10 +183,16 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         if start == "fixed" and self.layout.start is not None:  # (check_start: "fixed" needs a start)
             fixed_start = (float(self.layout.start[0]), float(self.layout.start[1]))
         self.dynamics = RobotDynamics(
-            grid=read_only(self._grid), goal=(self._gx, self._gy), starts=read_only(self._starts.astype(np.int64)),
+            grid=read_only(self._grid),
+            goal=(self._gx, self._gy),
+            starts=read_only(self._starts.astype(np.int64)),
             fixed_start=fixed_start,
-            move=move, radius=radius, sonar_directions=read_only(self._dirs),
-            sonar_range=sonar_range, sonar_noise=sonar_noise, observe_sonar=observe_sonar,
+            move=move,
+            radius=radius,
+            sonar_directions=read_only(self._dirs),
+            sonar_range=sonar_range,
+            sonar_noise=sonar_noise,
+            observe_sonar=observe_sonar,
             max_steps=int(max_steps),
         )
         """The maze's dynamics as frozen data (a ``RobotDynamics``, src/avq/envs/robot_geometry.py), for compiled loops."""
@@ -210,7 +226,8 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         a = action_index(action)
         self._steps += 1
         self._x, self._y, reward, terminated, collision = robot_move(
-            self._grid, self._x, self._y, a, self.move, self.radius, self._gx, self._gy)
+            self._grid, self._x, self._y, a, self.move, self.radius, self._gx, self._gy
+        )
         truncated = self._steps >= self.max_steps
         self._sense()
         return self._obs(), reward, terminated, truncated, self._info(collision)
@@ -313,8 +330,7 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         w, h, r = self.layout.width, self.layout.height, self.radius
         if not (-0.5 + r <= x + EPS and x - EPS <= w - 0.5 - r and -0.5 + r <= y + EPS and y - EPS <= h - 0.5 - r):
             raise ValueError(
-                f"{what}=({x}, {y}) puts the robot (radius {r}) outside the maze "
-                f"[-0.5, {w - 0.5}] x [-0.5, {h - 0.5}]"
+                f"{what}=({x}, {y}) puts the robot (radius {r}) outside the maze [-0.5, {w - 0.5}] x [-0.5, {h - 0.5}]"
             )
         if disc_collides(self._grid, x, y, r):
             raise ValueError(f"{what}=({x}, {y}): the robot (radius {r}) would overlap a wall")
@@ -354,6 +370,7 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
     def _render_rgb(self, scale: int = 32) -> np.ndarray:
         """Walls dark, goal green, the robot a red disc, each beam a line from its surface to its range."""
         return robot_frame(self.layout, self._x, self._y, self.radius, self._dirs, self._sonar, scale)
+
 
 def _number(name: str, value: Any) -> float:
     if isinstance(value, bool):

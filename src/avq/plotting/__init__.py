@@ -6,13 +6,21 @@ here, on first use.
 
 from avq.plotting.animation import animate_partition
 from avq.plotting.curves import (
-                                 MIN_SEEDS_FOR_INTERVAL,
-                                 learning_curves_figure,
-                                 mean_ci95,
-                                 plot_learning_curves,
-                                 running_mean,
+    MIN_SEEDS_FOR_INTERVAL,
+    learning_curves_figure,
+    mean_ci95,
+    plot_learning_curves,
+    running_mean,
 )
 from avq.plotting.partition import plot_partition, plot_partitions
 
-__all__ = ["plot_partition", "plot_partitions", "animate_partition", "plot_learning_curves", "learning_curves_figure",
-           "running_mean", "mean_ci95", "MIN_SEEDS_FOR_INTERVAL"]
+__all__ = [
+    "plot_partition",
+    "plot_partitions",
+    "animate_partition",
+    "plot_learning_curves",
+    "learning_curves_figure",
+    "running_mean",
+    "mean_ci95",
+    "MIN_SEEDS_FOR_INTERVAL",
+]

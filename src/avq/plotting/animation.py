@@ -99,9 +99,14 @@ def animate_partition(
     palette = cell_palette(plt)
     ids = _colour_ids(views)
     fig, ax = plt.subplots(figsize=(max(4.0, w * 0.45), max(3.5, h * 0.45) + 0.5))
-    cells, borders = maze_axes(ax, layout, cell_image(layout, views[0], palette[ids[0] % len(palette)]),
-                                cell_borders(layout, views[0]), fontsize=None)
-    dots, = ax.plot([], [], "o", color="k", ms=2.5, ls="none", zorder=4)
+    cells, borders = maze_axes(
+        ax,
+        layout,
+        cell_image(layout, views[0], palette[ids[0] % len(palette)]),
+        cell_borders(layout, views[0]),
+        fontsize=None,
+    )
+    (dots,) = ax.plot([], [], "o", color="k", ms=2.5, ls="none", zorder=4)
 
     def heading(view: PartitionView) -> str:
         what = f"trial {view.episode}: {view.n_cells} cell{'s' if view.n_cells != 1 else ''}"

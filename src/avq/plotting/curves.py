@@ -81,8 +81,7 @@ def learning_curves_figure(
         means = [running_mean(np.asarray(r[:n], float), window) for r in runs]
         label = f"{name} ({len(runs)} seed{'s' if len(runs) != 1 else ''})"
         _mean_and_spread(ax, means[0][0], np.stack([m for _, m in means]), colour[name], band, label)
-    spread = ("mean over seeds and its 95% t-interval" if band else
-              "mean over seeds (thick) and each seed (thin)")
+    spread = "mean over seeds and its 95% t-interval" if band else "mean over seeds (thick) and each seed (thin)"
     smoothing = f", each a {window}-{xlabel} trailing mean" if window > 1 else ""
     ax.set_title(f"{title or 'learning curves'}\n({spread}{smoothing})", fontsize=10)
     ax.set_xlabel(xlabel)
@@ -106,8 +105,15 @@ def learning_curves_figure(
     fig.tight_layout()
     # One legend for both panels (an agent has the same colour in each), below them, off the data.
     handles, labels = ax.get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=min(3, len(labels)),
-               fontsize=8, frameon=False)
+    fig.legend(
+        handles,
+        labels,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=min(3, len(labels)),
+        fontsize=8,
+        frameon=False,
+    )
     return fig
 
 

@@ -13,8 +13,18 @@ from avq.agents.base import BaseAgent
 from avq.figure_data import GreedyWalk, PartitionView, maze_squares, partition_view, sample_walks
 from avq.plotting._figure import pyplot, save_figure
 
-__all__ = ["plot_partition", "plot_partitions", "cell_palette", "cell_image", "cell_borders", "cell_arrows",
-           "draw_arrows", "maze_axes", "ARROWS", "Y_DOWN"]
+__all__ = [
+    "plot_partition",
+    "plot_partitions",
+    "cell_palette",
+    "cell_image",
+    "cell_borders",
+    "cell_arrows",
+    "draw_arrows",
+    "maze_axes",
+    "ARROWS",
+    "Y_DOWN",
+]
 
 
 ARROWS = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]], dtype=float)  # N E S W in (x, y)
@@ -64,9 +74,22 @@ def cell_arrows(view: PartitionView) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 def draw_arrows(ax, anchors: np.ndarray, directions: np.ndarray, length: float, width: float):
     """Arrows from the centres of their squares, in data units, so that they scale with the maze."""
-    return ax.quiver(anchors[:, 0], anchors[:, 1], directions[:, 0] * length, directions[:, 1] * length, angles="xy",
-                     scale_units="xy", scale=1, units="xy", width=width, headwidth=3.2, headlength=3,
-                     headaxislength=2.7, color="k", zorder=3)
+    return ax.quiver(
+        anchors[:, 0],
+        anchors[:, 1],
+        directions[:, 0] * length,
+        directions[:, 1] * length,
+        angles="xy",
+        scale_units="xy",
+        scale=1,
+        units="xy",
+        width=width,
+        headwidth=3.2,
+        headlength=3,
+        headaxislength=2.7,
+        color="k",
+        zorder=3,
+    )
 
 
 def maze_axes(ax, layout, image: np.ndarray, segments: list, fontsize: float | None):
@@ -116,7 +139,7 @@ def _draw_walk(ax, walk: GreedyWalk) -> None:
     end = len(xy) if walk.loop_from is None else walk.loop_from + 1
     ax.plot(xy[:end, 0], xy[:end, 1], "-", color=colour, lw=2.4, alpha=0.85, zorder=5, label=_walk_label(walk))
     if walk.loop_from is not None:
-        ax.plot(xy[walk.loop_from:, 0], xy[walk.loop_from:, 1], "--", color=colour, lw=2.4, zorder=5)
+        ax.plot(xy[walk.loop_from :, 0], xy[walk.loop_from :, 1], "--", color=colour, lw=2.4, zorder=5)
     if walk.bump_action is not None:
         wall = xy[-1] + ARROWS[walk.bump_action] * 0.5
         ax.plot([xy[-1, 0], wall[0]], [xy[-1, 1], wall[1]], "-", color=colour, lw=3, zorder=5)
@@ -155,14 +178,38 @@ def plot_partitions(
         placed, anchors, directions = cell_arrows(view)
         numbered = view.vectors is not None
         if view.vectors is not None:
-            ax.plot(view.vectors[:, 0], view.vectors[:, 1], "o", color="k", ms=3, ls="none", zorder=4,
-                    label="codebook vector")
+            ax.plot(
+                view.vectors[:, 0],
+                view.vectors[:, 1],
+                "o",
+                color="k",
+                ms=3,
+                ls="none",
+                zorder=4,
+                label="codebook vector",
+            )
             for c, (ax_x, ax_y) in zip(placed, anchors):  # the number in the square's upper left corner
-                ax.text(ax_x - 0.27, ax_y - 0.25, str(c + 1), fontsize=9, fontweight="bold", color="navy",
-                        ha="center", va="center", zorder=4)
+                ax.text(
+                    ax_x - 0.27,
+                    ax_y - 0.25,
+                    str(c + 1),
+                    fontsize=9,
+                    fontweight="bold",
+                    color="navy",
+                    ha="center",
+                    va="center",
+                    zorder=4,
+                )
         draw_arrows(ax, anchors, directions, length=0.45 if numbered else 0.4, width=0.07 if numbered else 0.05)
-        ax.plot([], [], marker=r"$\rightarrow$", color="k", ls="none", ms=12,
-                label="greedy action of the cell (number: the cell)" if numbered else "greedy action")
+        ax.plot(
+            [],
+            [],
+            marker=r"$\rightarrow$",
+            color="k",
+            ls="none",
+            ms=12,
+            label="greedy action of the cell (number: the cell)" if numbered else "greedy action",
+        )
         for walk in sample_walks(agent, env):
             _draw_walk(ax, walk)
         ax.plot([], [], "s", color="grey", ms=9, mfc="none", mew=2, ls="none", label="start of a path")

@@ -40,8 +40,17 @@ from avq.sweep.config import METRICS, SweepConfig, _is_int, read_sweep_config
 from avq.sweep.results import _plot_curves, _rows, _write_results, report
 from avq.sweep.trial import Trial, _trial_kwargs, plan_trials, run_trial  # noqa: F401  (Trial: importable here, as before)
 
-__all__ = ["SweepConfig", "read_sweep_config", "plan_trials", "run_trial", "run_sweep", "report", "SweepInterrupted",
-           "BACKENDS", "METRICS"]
+__all__ = [
+    "SweepConfig",
+    "read_sweep_config",
+    "plan_trials",
+    "run_trial",
+    "run_sweep",
+    "report",
+    "SweepInterrupted",
+    "BACKENDS",
+    "METRICS",
+]
 
 
 def _summary_path(out: Path, trial: Trial) -> Path:
@@ -61,9 +70,16 @@ class SweepInterrupted(KeyboardInterrupt):
         self.out, self.finished, self.total = out, finished, total
 
 
-def run_sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str | os.PathLike, *,
-              backend: str = "local", address: str | None = None, jobs: int | None = None,
-              progress: bool = True, log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+def run_sweep(
+    config: str | os.PathLike | dict[str, Any] | SweepConfig,
+    out: str | os.PathLike,
+    *,
+    backend: str = "local",
+    address: str | None = None,
+    jobs: int | None = None,
+    progress: bool = True,
+    log: Callable[[str], None] | None = None,
+) -> list[dict[str, Any]]:
     """Run every trial of a sweep that has not finished yet; write ``results.csv`` and ``curves.png``.
 
     Args:
@@ -113,8 +129,10 @@ def run_sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str
             else:
                 todo.append(t)
         if results and log is not None:
-            log(f"kept {len(results)} finished trial{'s' if len(results) != 1 else ''} of {len(trials)} in {out}; "
-                f"running the other {len(todo)}")
+            log(
+                f"kept {len(results)} finished trial{'s' if len(results) != 1 else ''} of {len(trials)} in {out}; "
+                f"running the other {len(todo)}"
+            )
         n_jobs = int(jobs or os.cpu_count() or 1)
         bar = None
         if progress:
@@ -145,8 +163,11 @@ def run_sweep(config: str | os.PathLike | dict[str, Any] | SweepConfig, out: str
 
 def sweep(*args: Any, **kwargs: Any) -> list[dict[str, Any]]:
     """Deprecated: :func:`run_sweep` (the old name, which was also this package's)."""
-    warnings.warn("avq.sweep.sweep() is deprecated and will be removed in avq 0.3; call avq.run_sweep()",
-                  DeprecationWarning, stacklevel=2)
+    warnings.warn(
+        "avq.sweep.sweep() is deprecated and will be removed in avq 0.3; call avq.run_sweep()",
+        DeprecationWarning,
+        stacklevel=2,
+    )
     return run_sweep(*args, **kwargs)
 
 
@@ -154,8 +175,11 @@ class _CallablePackage(types.ModuleType):
     """This package, callable as ``avq.sweep(...)`` was before the function became :func:`run_sweep`."""
 
     def __call__(self, *args: Any, **kwargs: Any) -> list[dict[str, Any]]:
-        warnings.warn("avq.sweep(...) is deprecated and will be removed in avq 0.3; call avq.run_sweep(...)",
-                      DeprecationWarning, stacklevel=2)
+        warnings.warn(
+            "avq.sweep(...) is deprecated and will be removed in avq 0.3; call avq.run_sweep(...)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
         return run_sweep(*args, **kwargs)
 
 

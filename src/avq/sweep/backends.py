@@ -22,8 +22,10 @@ BACKENDS = ("local", "ray", "dask")
 
 
 def _missing(backend: str, module: str) -> ValueError:
-    return ValueError(f"the {backend} backend needs {module}, which is not installed: "
-                      f"pip install \"avq[{backend}]\" (from a clone of avq: pip install \".[{backend}]\")")
+    return ValueError(
+        f"the {backend} backend needs {module}, which is not installed: "
+        f'pip install "avq[{backend}]" (from a clone of avq: pip install ".[{backend}]")'
+    )
 
 
 def _check_backend(backend: str, address: str | None) -> None:
@@ -62,7 +64,8 @@ def _run_local(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> 
     from joblib import Parallel, delayed
 
     yield from Parallel(n_jobs=n_jobs, return_as="generator_unordered")(
-        delayed(_local_trial)(k, kw, os.getpid()) for k, kw in enumerate(jobs))
+        delayed(_local_trial)(k, kw, os.getpid()) for k, kw in enumerate(jobs)
+    )
 
 
 def _indexed_trial(k: int, kwargs: dict[str, Any]) -> tuple[int, dict[str, Any]]:
@@ -142,5 +145,7 @@ def _run_dask(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> I
 
 
 _RUNNERS: dict[str, Callable[[list[dict[str, Any]], int, str | None], Iterator[tuple[int, dict]]]] = {
-    "local": _run_local, "ray": _run_ray, "dask": _run_dask,
+    "local": _run_local,
+    "ray": _run_ray,
+    "dask": _run_dask,
 }

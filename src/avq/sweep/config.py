@@ -13,11 +13,29 @@ __all__ = ["SweepConfig", "read_sweep_config", "METRICS"]
 
 #: Final metrics of a trial, in ``results.csv`` order, and whether higher is better.
 METRICS = {
-    "final_return": True, "eval_return": True, "success_rate": True, "path_ratio": False,
-    "n_cells": False, "env_steps": False, "episodes": True, "wall_s": False,
+    "final_return": True,
+    "eval_return": True,
+    "success_rate": True,
+    "path_ratio": False,
+    "n_cells": False,
+    "env_steps": False,
+    "episodes": True,
+    "wall_s": False,
 }
-_KEYS = {"env", "env_kwargs", "agents", "grid", "params", "seeds", "root_seed", "episodes", "timesteps",
-         "eval_episodes", "metric", "save_models"}
+_KEYS = {
+    "env",
+    "env_kwargs",
+    "agents",
+    "grid",
+    "params",
+    "seeds",
+    "root_seed",
+    "episodes",
+    "timesteps",
+    "eval_episodes",
+    "metric",
+    "save_models",
+}
 _ENV_PREFIX = "env_kwargs."
 
 
@@ -40,10 +58,17 @@ class SweepConfig:
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "env": self.env, "env_kwargs": self.env_kwargs, "agents": list(self.agents), "grid": self.grid,
-            "params": self.params, "seeds": list(self.seeds), "root_seed": self.root_seed,
+            "env": self.env,
+            "env_kwargs": self.env_kwargs,
+            "agents": list(self.agents),
+            "grid": self.grid,
+            "params": self.params,
+            "seeds": list(self.seeds),
+            "root_seed": self.root_seed,
             **({"episodes": self.episodes} if self.episodes is not None else {"timesteps": self.timesteps}),
-            "eval_episodes": self.eval_episodes, "metric": self.metric, "save_models": self.save_models,
+            "eval_episodes": self.eval_episodes,
+            "metric": self.metric,
+            "save_models": self.save_models,
         }
 
 
@@ -129,9 +154,18 @@ def read_sweep_config(source: str | os.PathLike | dict[str, Any]) -> SweepConfig
     if "seed" in params:
         raise bad("params", "cannot set seed; seeds come from 'seeds'")
     config = SweepConfig(
-        env=raw["env"], agents=tuple(agents), seeds=seed_list, episodes=episodes, timesteps=timesteps,
-        env_kwargs=dict(raw.get("env_kwargs") or {}), grid=grid, params=params, root_seed=int(root_seed),
-        eval_episodes=int(eval_episodes), metric=metric, save_models=save_models,
+        env=raw["env"],
+        agents=tuple(agents),
+        seeds=seed_list,
+        episodes=episodes,
+        timesteps=timesteps,
+        env_kwargs=dict(raw.get("env_kwargs") or {}),
+        grid=grid,
+        params=params,
+        root_seed=int(root_seed),
+        eval_episodes=int(eval_episodes),
+        metric=metric,
+        save_models=save_models,
     )
     _check_configurations(config, where)
     return config
@@ -147,7 +181,7 @@ def _configurations(config: SweepConfig) -> list[tuple[str, dict[str, Any]]]:
 def _split(point: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """A grid point as (agent parameters, environment arguments)."""
     params = {k: v for k, v in point.items() if not k.startswith(_ENV_PREFIX)}
-    env_kwargs = {k[len(_ENV_PREFIX):]: v for k, v in point.items() if k.startswith(_ENV_PREFIX)}
+    env_kwargs = {k[len(_ENV_PREFIX) :]: v for k, v in point.items() if k.startswith(_ENV_PREFIX)}
     return params, env_kwargs
 
 
@@ -173,7 +207,9 @@ def _check_configurations(config: SweepConfig, where: str) -> None:
             make_agent(agent, env, seed=0, **{**config.params, **params})
         except (TypeError, ValueError) as exc:
             keys = ", ".join(f"grid.{k}" for k in params) or "params"
-            raise ValueError(f"{where}: agent {agent} with {_label(params) or 'its defaults'} ({keys}): {exc}") from None
+            raise ValueError(
+                f"{where}: agent {agent} with {_label(params) or 'its defaults'} ({keys}): {exc}"
+            ) from None
 
 
 def _label(point: dict[str, Any]) -> str:

@@ -26,8 +26,13 @@ def _rows(cfg: SweepConfig, trials: list[Trial], results: dict[int, dict[str, An
         if t.index not in results:
             continue
         r = results[t.index]
-        row: dict[str, Any] = {"trial": t.dirname, "config": t.config_id, "agent": t.agent,
-                               "seed_index": t.seed_index, "seed": t.seed}
+        row: dict[str, Any] = {
+            "trial": t.dirname,
+            "config": t.config_id,
+            "agent": t.agent,
+            "seed_index": t.seed_index,
+            "seed": t.seed,
+        }
         row.update({f"config/{k}": t.point[k] for k in keys})
         row["status"] = r["status"]
         row.update({m: r.get(m) for m in METRICS})
@@ -37,8 +42,17 @@ def _rows(cfg: SweepConfig, trials: list[Trial], results: dict[int, dict[str, An
 
 
 def _write_results(out: Path, cfg: SweepConfig, rows: list[dict[str, Any]]) -> None:
-    columns = ["trial", "config", "agent", "seed_index", "seed", *(f"config/{k}" for k in cfg.grid), "status",
-               *METRICS, "error"]
+    columns = [
+        "trial",
+        "config",
+        "agent",
+        "seed_index",
+        "seed",
+        *(f"config/{k}" for k in cfg.grid),
+        "status",
+        *METRICS,
+        "error",
+    ]
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
@@ -78,13 +92,15 @@ def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict
             value = results.get(t.index, {}).get(cfg.metric)
             if value is not None:
                 score.setdefault(_config_label(t.agent, t.point), []).append(float(value))
-        ranked = sorted(curves, key=lambda k: -np.mean(score.get(k, [-math.inf])) if higher
-                        else np.mean(score.get(k, [math.inf])))
+        ranked = sorted(
+            curves, key=lambda k: -np.mean(score.get(k, [-math.inf])) if higher else np.mean(score.get(k, [math.inf]))
+        )
         curves = {k: curves[k] for k in ranked[:10]}
         note = f" (the 10 best of {len(ranked)} configurations by {cfg.metric})"
     # Each configuration is drawn over the episodes all its seeds have.
-    plot_learning_curves(curves, path, ylabel="return per episode", xlabel="episode",
-                         title=f"{cfg.env}: return per episode{note}")
+    plot_learning_curves(
+        curves, path, ylabel="return per episode", xlabel="episode", title=f"{cfg.env}: return per episode{note}"
+    )
     return True
 
 
@@ -115,17 +131,22 @@ def report(out: str | os.PathLike, metric: str | None = None) -> str:
     ranked = []
     for label, g in groups.items():
         vals = np.array(g["values"])
-        mean, half = (mean_ci95(vals[:, None]) if len(vals) else (np.array([math.nan]), np.array([math.nan])))
+        mean, half = mean_ci95(vals[:, None]) if len(vals) else (np.array([math.nan]), np.array([math.nan]))
         ranked.append((label, float(mean[0]), float(half[0]), vals, g))
     ranked.sort(key=lambda r: (math.isnan(r[1]), -r[1] if higher else r[1]))
     width = max([len("configuration")] + [len(r[0]) for r in ranked])
     head = f"{'rank':>4}  {'configuration':<{width}}  {metric + ' mean':>16}  {'± 95%':>9}  {'min':>9}  {'max':>9}  {'ok':>3}  {'failed':>6}"
-    lines = [f"{out}: {len(rows)} trials, ranked by {metric} ({'higher' if higher else 'lower'} is better)", head,
-             "-" * len(head)]
+    lines = [
+        f"{out}: {len(rows)} trials, ranked by {metric} ({'higher' if higher else 'lower'} is better)",
+        head,
+        "-" * len(head),
+    ]
     for k, (label, mean_k, half_k, vals, g) in enumerate(ranked, 1):
         lo = f"{vals.min():.4g}" if len(vals) else "-"
         hi = f"{vals.max():.4g}" if len(vals) else "-"
         spread = f"{half_k:.3g}" if len(vals) >= 2 else "-"
-        lines.append(f"{k:>4}  {label:<{width}}  {mean_k:>16.4g}  {spread:>9}  {lo:>9}  {hi:>9}  "
-                     f"{len(vals):>3}  {g['failed']:>6}")
+        lines.append(
+            f"{k:>4}  {label:<{width}}  {mean_k:>16.4g}  {spread:>9}  {lo:>9}  {hi:>9}  "
+            f"{len(vals):>3}  {g['failed']:>6}"
+        )
     return "\n".join(lines)

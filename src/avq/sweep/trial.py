@@ -48,9 +48,18 @@ def plan_trials(config: SweepConfig) -> list[Trial]:
     return out
 
 
-def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, params: dict[str, Any],
-              seed: int, episodes: int | None, timesteps: int | None, eval_episodes: int = 10,
-              save_model: bool = True) -> dict[str, Any]:
+def run_trial(
+    trial_dir: str,
+    env: str,
+    env_kwargs: dict[str, Any],
+    agent: str,
+    params: dict[str, Any],
+    seed: int,
+    episodes: int | None,
+    timesteps: int | None,
+    eval_episodes: int = 10,
+    save_model: bool = True,
+) -> dict[str, Any]:
     """Train and evaluate one agent; write ``params.json``, ``progress.csv``, ``model.zip``, ``summary.json``.
 
     ``summary.json`` is written last, so its presence marks a finished trial;
@@ -67,8 +76,16 @@ def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, 
     if done.exists():
         return json.loads(done.read_text(encoding="utf-8"))
     out.mkdir(parents=True, exist_ok=True)
-    spec = {"env": env, "env_kwargs": env_kwargs, "agent": agent, "params": params, "seed": seed,
-            "episodes": episodes, "timesteps": timesteps, "eval_episodes": eval_episodes}
+    spec = {
+        "env": env,
+        "env_kwargs": env_kwargs,
+        "agent": agent,
+        "params": params,
+        "seed": seed,
+        "episodes": episodes,
+        "timesteps": timesteps,
+        "eval_episodes": eval_episodes,
+    }
     atomic_write_bytes(out / "params.json", json.dumps(spec, indent=2).encode())
     t0 = time.perf_counter()
     model = make_agent(agent, make_env(env, env_kwargs), seed=seed, **params)
@@ -80,11 +97,15 @@ def run_trial(trial_dir: str, env: str, env_kwargs: dict[str, Any], agent: str, 
     if save_model:
         model.save(out / "model.zip")
     returns = model.episode_history().get("return", np.zeros(0))
-    tail = returns[-max(1, len(returns) // 10):]
+    tail = returns[-max(1, len(returns) // 10) :]
     summary: dict[str, Any] = {
         "final_return": float(np.mean(tail)) if len(tail) else None,
-        "eval_return": None, "success_rate": None, "path_ratio": None,
-        "n_cells": int(model.n_cells), "env_steps": int(model.num_timesteps), "episodes": int(model.num_episodes),
+        "eval_return": None,
+        "success_rate": None,
+        "path_ratio": None,
+        "n_cells": int(model.n_cells),
+        "env_steps": int(model.num_timesteps),
+        "episodes": int(model.num_episodes),
         "wall_s": None,
     }
     if eval_episodes:
@@ -113,8 +134,14 @@ def _safe_trial(kwargs: dict[str, Any]) -> dict[str, Any]:
 def _trial_kwargs(config: SweepConfig, trial: Trial, out: Path) -> dict[str, Any]:
     params, env_kwargs = _split(trial.point)
     return {
-        "trial_dir": str(out / "trials" / trial.dirname), "env": config.env,
-        "env_kwargs": {**config.env_kwargs, **env_kwargs}, "agent": trial.agent,
-        "params": {**config.params, **params}, "seed": trial.seed, "episodes": config.episodes,
-        "timesteps": config.timesteps, "eval_episodes": config.eval_episodes, "save_model": config.save_models,
+        "trial_dir": str(out / "trials" / trial.dirname),
+        "env": config.env,
+        "env_kwargs": {**config.env_kwargs, **env_kwargs},
+        "agent": trial.agent,
+        "params": {**config.params, **params},
+        "seed": trial.seed,
+        "episodes": config.episodes,
+        "timesteps": config.timesteps,
+        "eval_episodes": config.eval_episodes,
+        "save_model": config.save_models,
     }

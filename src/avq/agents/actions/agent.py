@@ -153,8 +153,10 @@ class ActionCodebookSarsa(PerStepAgent):
         self._act_high = np.asarray(box.high, dtype=np.float64).ravel()
         self._grid = uniform_actions(self.init_actions, self._act_low.shape[0])
         if not self.fixed and len(self._grid) > self.max_actions:
-            raise ValueError(f"max_actions must be at least the initial grid's {len(self._grid)} actions "
-                             f"(init_actions ** action dims), not {self.max_actions}")
+            raise ValueError(
+                f"max_actions must be at least the initial grid's {len(self._grid)} actions "
+                f"(init_actions ** action dims), not {self.max_actions}"
+            )
         # Weight columns: the grid alone when fixed, else room for max_actions (never reallocated).
         self._slots = len(self._grid) if self.fixed else self.max_actions
 
@@ -166,11 +168,15 @@ class ActionCodebookSarsa(PerStepAgent):
         if isinstance(act_space, spaces.Discrete):
             raise ValueError(  # noqa: TRY004
                 f"{name} quantizes a continuous (Box) action space, but this environment's actions are "
-                f"already Discrete; use the other agents ('tiles', 'avq', 'grid'; see avq.AGENTS)")
+                f"already Discrete; use the other agents ('tiles', 'avq', 'grid'; see avq.AGENTS)"
+            )
         if not isinstance(act_space, spaces.Box):
             raise ValueError(f"{name} needs a Box action space, not {act_space}")  # noqa: TRY004
-        if not (np.all(np.isfinite(act_space.low)) and np.all(np.isfinite(act_space.high))
-                and np.all(act_space.high > act_space.low)):
+        if not (
+            np.all(np.isfinite(act_space.low))
+            and np.all(np.isfinite(act_space.high))
+            and np.all(act_space.high > act_space.low)
+        ):
             raise ValueError(f"{name} needs a Box action space with finite bounds and low < high, not {act_space}")
 
     # -- learned state ------------------------------------------------------------------------------
@@ -372,8 +378,9 @@ class ActionCodebookSarsa(PerStepAgent):
         if self.fixed and not np.array_equal(units, self._grid):
             raise ValueError("a fixed agent's actions must be its initial grid")
         if count < 0 or recent.shape != (min(count, self.memory), self.n_tilings):
-            raise ValueError(f"recent states of shape {recent.shape} do not fit recent_count {count} "
-                             f"and memory {self.memory}")
+            raise ValueError(
+                f"recent states of shape {recent.shape} do not fit recent_count {count} and memory {self.memory}"
+            )
         if recent.size and (recent.min() < 0 or recent.max() >= self.iht_size):
             raise ValueError("recent states name tiles outside the weight table")
         self._coder.restore(arrays["tiles"], int(meta["overflows"]))

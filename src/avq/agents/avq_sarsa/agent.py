@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._numba import direct_call
+from avq._numba import Compiled
 from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
 from avq.agents import _maze_loop
 from avq.agents._maze_loop import N_R
@@ -213,11 +213,15 @@ class AVQSarsa(GenericPath):
         self.alpha_decay = check_range("alpha_decay", alpha_decay, 0.0, 1.0, low_open=True)
         self.alpha_min = check_range("alpha_min", alpha_min, 0.0, 1.0)
         self.explore_bonus = check_range("explore_bonus", explore_bonus, 0.0, np.inf, high_open=True)
-        for name, start, decay, floor in (("alpha", self.alpha, self.alpha_decay, self.alpha_min),
-                                          ("epsilon", self.epsilon, self.epsilon_decay, self.epsilon_min)):
+        for name, start, decay, floor in (
+            ("alpha", self.alpha, self.alpha_decay, self.alpha_min),
+            ("epsilon", self.epsilon, self.epsilon_decay, self.epsilon_min),
+        ):
             if decay < 1.0 and floor > start:
-                raise ValueError(f"{name}_min ({floor}) must not exceed {name} ({start}): the schedule decays "
-                                 f"from {name} down to {name}_min")
+                raise ValueError(
+                    f"{name}_min ({floor}) must not exceed {name} ({start}): the schedule decays "
+                    f"from {name} down to {name}_min"
+                )
         self.collision_split = check_bool("collision_split", collision_split)
         self.cycle_split = check_bool("cycle_split", cycle_split)
         self.adapt_rate = check_range("adapt_rate", adapt_rate, 0.0, 1.0, high_open=True)
@@ -234,8 +238,9 @@ class AVQSarsa(GenericPath):
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated, self._factor = scale_setting(self.env.observation_space, scale,
-                                                                   self.obs_bounds, scale_factor)
+        self._scale, self._estimated, self._factor = scale_setting(
+            self.env.observation_space, scale, self.obs_bounds, scale_factor
+        )
         self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
 
     # -- spaces and scale ---------------------------------------------------------------
@@ -275,15 +280,29 @@ class AVQSarsa(GenericPath):
         self._pc[0, 0] = -1
         self._inv_scale[:] = 1.0 / self._scale
         params = self.get_params()
-        pack_params(core.FloatParam, {
-            **params, "alpha_now": 0.0, "epsilon_now": 0.0,
-            "value_trigger": -1.0 if self.value_trigger is None else self.value_trigger,
-            "reward_trigger": -1.0 if self.reward_trigger is None else self.reward_trigger}, out=self._P)
+        pack_params(
+            core.FloatParam,
+            {
+                **params,
+                "alpha_now": 0.0,
+                "epsilon_now": 0.0,
+                "value_trigger": -1.0 if self.value_trigger is None else self.value_trigger,
+                "reward_trigger": -1.0 if self.reward_trigger is None else self.reward_trigger,
+            },
+            out=self._P,
+        )
         self._P[core.FloatParam.EPSILON_NOW] = episode_end.epsilon_at(self._P, self.num_episodes)
         self._P[core.FloatParam.ALPHA_NOW] = episode_end.alpha_at(self._P, self.num_episodes)
-        pack_params(core.IntParam, {
-            **params, "traces": self.traces == "replacing", "merge_pairs": core.MERGE_PAIRS.index(self.merge_pairs),
-            "max_repeat": self.max_repeat or 0}, out=self._IP)
+        pack_params(
+            core.IntParam,
+            {
+                **params,
+                "traces": self.traces == "replacing",
+                "merge_pairs": core.MERGE_PAIRS.index(self.merge_pairs),
+                "max_repeat": self.max_repeat or 0,
+            },
+            out=self._IP,
+        )
         self._S[core.EPISODES] = self.num_episodes
         self._rec = np.zeros(N_R)
         #: The observations counted for scale="auto" (none: no dimension is estimated).
@@ -309,20 +328,18 @@ class AVQSarsa(GenericPath):
             return None
         mz = _maze_loop.maze_arguments(maze)
 
-        loop = [run_avq_maze]  # (after its first call, the compiled loop itself: typing a record costs µs)
+        loop = Compiled(run_avq_maze)  # (after its first call, the loop itself: typing a record costs µs)
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            args = (core.Cells(*self._state()), self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes,
-                    rec)
-            out = loop[0](*args)
-            if loop[0] is run_avq_maze:
-                loop[0] = direct_call(run_avq_maze, args) or run_avq_maze
-            return out
+            return loop(
+                core.Cells(*self._state()), self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes, rec
+            )
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
-            steps, rows = _maze_loop.drive(maze, kernel, lambda: self._ensure_capacity(4), max_steps, max_episodes,
-                                       max_records)
+            steps, rows = _maze_loop.drive(
+                maze, kernel, lambda: self._ensure_capacity(4), max_steps, max_episodes, max_records
+            )
             return steps, rows, bool(self._S[core.IN_EPISODE])
 
         return run

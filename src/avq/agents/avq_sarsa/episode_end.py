@@ -154,7 +154,7 @@ def _decayed(start: float, decay: float, floor: float, episodes: int) -> float:
     """``max(floor, start * decay ** episodes)``; exactly ``start`` when ``decay`` is 1."""
     if decay == 1.0:
         return start
-    return max(floor, start * decay ** episodes)
+    return max(floor, start * decay**episodes)
 
 
 @njit(cache=True)

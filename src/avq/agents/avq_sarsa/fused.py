@@ -45,9 +45,18 @@ def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episo
     # (Taken out of the record once: the kernels take the arrays one by one. Under Numba 0.68 an inlined
     # kernel that writes through a record argument can lose those writes in this loop.)
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
-        borrowed(cells.V), borrowed(cells.Q), borrowed(cells.E), borrowed(cells.born), borrowed(cells.act),
-        borrowed(cells.pc), borrowed(cells.inv_scale), borrowed(cells.P), borrowed(cells.IP), borrowed(cells.S),
-        borrowed(cells.F))
+        borrowed(cells.V),
+        borrowed(cells.Q),
+        borrowed(cells.E),
+        borrowed(cells.born),
+        borrowed(cells.act),
+        borrowed(cells.pc),
+        borrowed(cells.inv_scale),
+        borrowed(cells.P),
+        borrowed(cells.IP),
+        borrowed(cells.S),
+        borrowed(cells.F),
+    )
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     cap = V.shape[0]
     scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
@@ -92,8 +101,9 @@ def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episo
                 c, d2 = nearest_index(V, S[SIZE], x, inv_scale)
                 cell_cache[iy, ix] = c
                 dist_cache[iy, ix] = np.sqrt(d2)
-            j = observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done,
-                           cell_cache[iy, ix], dist_cache[iy, ix])
+            j = observe_at(
+                V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, cell_cache[iy, ix], dist_cache[iy, ix]
+            )
         if j < 0:
             continue
         a_next = a if terminated else decide(rng, Q, born, P, j, scr)

@@ -37,8 +37,19 @@ from avq.agents.avq_sarsa.kernels import (
 )
 from avq.agents.base import BaseAgent
 
-__all__ = ["GenericPath", "generic_start", "generic_step", "packed_sizes", "python_views", "unpack", "N_DIMS", "ENDED",
-           "NEED_DRAWS", "BAD_SHAPE", "NEED_ROOM"]
+__all__ = [
+    "GenericPath",
+    "generic_start",
+    "generic_step",
+    "packed_sizes",
+    "python_views",
+    "unpack",
+    "N_DIMS",
+    "ENDED",
+    "NEED_DRAWS",
+    "BAD_SHAPE",
+    "NEED_ROOM",
+]
 
 
 N_DIMS = 3
@@ -49,8 +60,10 @@ ENDED, NEED_DRAWS, BAD_SHAPE, NEED_ROOM = -1, -3, -4, -5  # (NOT_FINITE is -2)
 def _layout(cap: int, n: int, m: int) -> tuple[tuple, tuple]:
     """The shapes of the views, in buffer order: float ``V, Q, E, inv_scale, P, F, x, scr`` and int (after
     the dimensions) ``born, act, pc, IP, S`` (what :func:`unpack` cuts, compiled)."""
-    return (((cap, n), (cap, m), (cap, m), (n,), (N_P,), (N_F,), (n,), (1, m)),
-            ((cap, 2 + m), (cap + 1,), (cap + 1, 2), (N_IP,), (N_S,)))
+    return (
+        ((cap, n), (cap, m), (cap, m), (n,), (N_P,), (N_F,), (n,), (1, m)),
+        ((cap, 2 + m), (cap + 1,), (cap + 1, 2), (N_IP,), (N_S,)),
+    )
 
 
 def packed_sizes(cap: int, n: int, m: int) -> tuple[int, int]:
@@ -66,31 +79,31 @@ def unpack(fb, ib):
     fb, ib = borrowed(fb), borrowed(ib)
     cap, n, m = ib[0], ib[1], ib[2]
     o = 0
-    V = fb[o:o + cap * n].reshape((cap, n))
+    V = fb[o : o + cap * n].reshape((cap, n))
     o += cap * n
-    Q = fb[o:o + cap * m].reshape((cap, m))
+    Q = fb[o : o + cap * m].reshape((cap, m))
     o += cap * m
-    E = fb[o:o + cap * m].reshape((cap, m))
+    E = fb[o : o + cap * m].reshape((cap, m))
     o += cap * m
-    inv_scale = fb[o:o + n]
+    inv_scale = fb[o : o + n]
     o += n
-    P = fb[o:o + N_P]
+    P = fb[o : o + N_P]
     o += N_P
-    F = fb[o:o + N_F]
+    F = fb[o : o + N_F]
     o += N_F
-    x = fb[o:o + n]
+    x = fb[o : o + n]
     o += n
-    scr = fb[o:o + m].reshape((1, m))
+    scr = fb[o : o + m].reshape((1, m))
     k = N_DIMS
-    born = ib[k:k + cap * (2 + m)].reshape((cap, 2 + m))
+    born = ib[k : k + cap * (2 + m)].reshape((cap, 2 + m))
     k += cap * (2 + m)
-    act = ib[k:k + cap + 1]
+    act = ib[k : k + cap + 1]
     k += cap + 1
-    pc = ib[k:k + 2 * (cap + 1)].reshape((cap + 1, 2))
+    pc = ib[k : k + 2 * (cap + 1)].reshape((cap + 1, 2))
     k += 2 * (cap + 1)
-    IP = ib[k:k + N_IP]
+    IP = ib[k : k + N_IP]
     k += N_IP
-    S = ib[k:k + N_S]
+    S = ib[k : k + N_S]
     return V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr
 
 
@@ -108,7 +121,7 @@ def _cut(buf: np.ndarray, start: int, shapes: tuple) -> list[np.ndarray]:
     out, o = [], start
     for shape in shapes:
         size = math.prod(shape)
-        out.append(buf[o:o + size].reshape(shape))
+        out.append(buf[o : o + size].reshape(shape))
         o += size
     return out
 
@@ -178,7 +191,7 @@ class GenericPath(BaseAgent):
         n, m = self.env.observation_space.shape[0], self.n_actions
         fb_len, ib_len = packed_sizes(cap, n, m)
         fb, ib = np.zeros(fb_len), np.zeros(ib_len, dtype=np.int64)
-        ib[: N_DIMS] = cap, n, m
+        ib[:N_DIMS] = cap, n, m
         views = python_views(fb, ib)
         if getattr(self, "_fb", None) is not None:
             for new, old in zip(views, self._views):
@@ -215,14 +228,27 @@ class GenericPath(BaseAgent):
                 setattr(self, name, view)
 
     def _state(self) -> tuple:
-        return (self._V, self._Q, self._E, self._born, self._act, self._pc, self._inv_scale, self._P, self._IP,
-                self._S, self._F)
+        return (
+            self._V,
+            self._Q,
+            self._E,
+            self._born,
+            self._act,
+            self._pc,
+            self._inv_scale,
+            self._P,
+            self._IP,
+            self._S,
+            self._F,
+        )
 
     def _as_reward(self, r: Any, step: int) -> float:
         try:
             return float(r)
         except (TypeError, ValueError):
-            raise ValueError(f"reward {r!r} at step {step} of episode {self.num_episodes + 1} is not a number") from None
+            raise ValueError(
+                f"reward {r!r} at step {step} of episode {self.num_episodes + 1} is not a number"
+            ) from None
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
@@ -266,8 +292,14 @@ class GenericPath(BaseAgent):
             obs, r, terminated, truncated, info = step(a)
             n += 1
             collision = bool(info.get("collision", False))
-            if (direct is not None and type(obs) is ndarray and obs.dtype is obs_dtype and obs.shape == obs_shape
-                    and obs.flags.c_contiguous and type(r) is r_type):
+            if (
+                direct is not None
+                and type(obs) is ndarray
+                and obs.dtype is obs_dtype
+                and obs.shape == obs_shape
+                and obs.flags.c_contiguous
+                and type(r) is r_type
+            ):
                 a = direct(fb, ib, raw, cursor, obs, r, collision, terminated, truncated)
             else:
                 terminated, truncated = bool(terminated), bool(truncated)

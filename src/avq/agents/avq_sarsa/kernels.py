@@ -245,8 +245,12 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
         # SPEC §3, collision rule (avq.rules.collision_rule).
         dist_i = dist_j if j == i else scaled_distance(V, i, x, inv_scale)
         outcome = collision_rule(dist_i, dist_j, P[FloatParam.D_MIN])
-        if outcome == CHI_OUTCOME and IP[IntParam.COLLISION_SPLIT] and S[SIZE] < IP[IntParam.MAX_CELLS] \
-                and collision_split(dist_i, np.argmax(Q[i]) == a, Q[i, a], P[FloatParam.CHI]):
+        if (
+            outcome == CHI_OUTCOME
+            and IP[IntParam.COLLISION_SPLIT]
+            and S[SIZE] < IP[IntParam.MAX_CELLS]
+            and collision_split(dist_i, np.argmax(Q[i]) == a, Q[i, a], P[FloatParam.CHI])
+        ):
             # Beyond the paper: the cell's greedy action hit a wall here but is still the best one
             # elsewhere in the cell; instead of condemning it for the whole cell, split x off.
             j = _append(V, Q, E, born, S, x, i)
@@ -285,7 +289,13 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
         if _may_append(scaled_distance(V, j, x, inv_scale), P, IP, S):
             j = _append(V, Q, E, born, S, x, j)
             appended = True
-    if IP[IntParam.CYCLE_SPLIT] and not (done or appended) and greedy and S[PREV_GREEDY] and closes_cycle(S[PREV_CELL], i, j):
+    if (
+        IP[IntParam.CYCLE_SPLIT]
+        and not (done or appended)
+        and greedy
+        and S[PREV_GREEDY]
+        and closes_cycle(S[PREV_CELL], i, j)
+    ):
         # Beyond the paper: two greedy decisions led from cell j to i and back into j, a cycle
         # that the greedy policy would repeat forever: the cell j is wrong for part of it.
         # Split off the square of the return (x, unless it is j's own vector).

@@ -52,9 +52,15 @@ def run_tabular_grid_maze(table: Table, sp: SarsaParams, rng, env_rng, mz, pos, 
     row for every position; ``act`` is the active list of :mod:`avq.agents._td`.
     Returns ``(steps, episodes, status)``. (GridMaze only: ``mz.robot`` must be False.)
     """
-    q, e, act, row_of, keys, T, TF = (borrowed(table.q), borrowed(table.e), borrowed(table.act),
-                                      borrowed(table.row_of), borrowed(table.keys), borrowed(table.T),
-                                      borrowed(table.TF))
+    q, e, act, row_of, keys, T, TF = (
+        borrowed(table.q),
+        borrowed(table.e),
+        borrowed(table.act),
+        borrowed(table.row_of),
+        borrowed(table.keys),
+        borrowed(table.T),
+        borrowed(table.TF),
+    )
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0

@@ -37,7 +37,7 @@ def uniform_grid(space, obs_bounds, bins) -> tuple[np.ndarray, np.ndarray, np.nd
     low, high = resolve_bounds(space, obs_bounds)
     n = low.shape[0]
     per_dim = np.full(n, check_per_dimension("bins", bins, n), dtype=np.int64)
-    strides = np.array([math.prod(per_dim[d + 1:].tolist()) for d in range(n)], dtype=np.int64)
+    strides = np.array([math.prod(per_dim[d + 1 :].tolist()) for d in range(n)], dtype=np.int64)
     return low, high, per_dim, per_dim / (high - low), strides
 
 
@@ -95,7 +95,8 @@ class GridSarsa(TableSarsa):
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         self._low, self._high, self._bins, self._bins_per_unit, self._strides = uniform_grid(
-            self.env.observation_space, self.obs_bounds, self.bins)
+            self.env.observation_space, self.obs_bounds, self.bins
+        )
         self._n_bins = math.prod(self._bins.tolist())
         if self._n_bins > _MAX_BINS:
             raise ValueError(

@@ -47,6 +47,7 @@ def greedy_over_rows(space: Any, obs: np.ndarray, row: Any, Q: np.ndarray) -> np
             out[b] = int(Q[r].argmax())
     return out
 
+
 class TableSarsa(PerStepAgent):
     """Base of the table agents: ``_q``, ``_e`` ``(rows, m)``, the active list ``_act`` of
     :mod:`avq.agents._td`, ``_n`` rows in use; the episode's row, action, steps, return and new rows."""

@@ -64,9 +64,14 @@ class TabularSarsa(TableSarsa):
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(f"TabularSarsa needs a Discrete action space, not {act_space}"
-                             + ("; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
-                                if isinstance(act_space, spaces.Box) else ""))
+            raise ValueError(
+                f"TabularSarsa needs a Discrete action space, not {act_space}"
+                + (
+                    "; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
+                    if isinstance(act_space, spaces.Box)
+                    else ""
+                )
+            )
         if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
             raise ValueError(f"TabularSarsa needs a Discrete or Box observation space, not {obs_space}")
         self._discrete = isinstance(obs_space, spaces.Discrete)
@@ -120,15 +125,24 @@ class TabularSarsa(TableSarsa):
             for key, row in self._index.items():
                 row_of[int(key[1]), int(key[0])] = row
                 keys[row] = int(key[0]), int(key[1])
-            T = np.array([self._n, self._ep_row, self._ep_action, self._ep_steps, self._ep_new,
-                          int(self._in_episode)], dtype=np.int64)
+            T = np.array(
+                [self._n, self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)],
+                dtype=np.int64,
+            )
             TF = np.array([self._ep_return])
 
             def kernel(pos, budget_steps, budget_episodes, rec):
                 return run_tabular_grid_maze(
                     Table(self._q, self._e, self._act, row_of, keys, T, TF),
                     SarsaParams(self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing"),
-                    self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes, rec)
+                    self._rng,
+                    maze.np_random,
+                    mz,
+                    pos,
+                    budget_steps,
+                    budget_episodes,
+                    rec,
+                )
 
             steps, rows = _maze_loop.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)
             for row in range(self._n, int(T[0])):

@@ -64,7 +64,8 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
         return active2, a2
 
     agent._ep_active, agent._ep_action, n, ended = agent._sarsa_steps(
-        max_steps, agent._ep_active, agent._ep_action, update, env_actions)
+        max_steps, agent._ep_active, agent._ep_action, update, env_actions
+    )
     return n, ended
 
 
@@ -205,8 +206,13 @@ class TileSarsa(PerStepAgent):
 
     def _end_episode(self) -> EpisodeRecord:
         coder = self._coder
-        return episode_record(self._ep_steps, self._ep_return, coder.n_used, coder.n_used - self._ep_used0,
-                              refused=coder.overflows - self._ep_overflows0)
+        return episode_record(
+            self._ep_steps,
+            self._ep_return,
+            coder.n_used,
+            coder.n_used - self._ep_used0,
+            refused=coder.overflows - self._ep_overflows0,
+        )
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         return self.q_values(obs).argmax(axis=1).astype(np.int64)

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._numba import direct_call
+from avq._numba import Compiled, direct_call
 from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _maze_loop
 from avq.agents._params import pack_params
@@ -37,6 +37,7 @@ from avq.agents.plan.state import (
     PlanArrays,
     PlanIntParam,
     PlanParam,
+    horizon,
 )
 from avq.quantizer import Codebook
 
@@ -147,8 +148,9 @@ class PlanningAVQ(BaseAgent):
         self.collision_growth = check_bool("collision_growth", collision_growth)
         self.outcome_split = check_bool("outcome_split", outcome_split)
         self.cycle_split = check_bool("cycle_split", cycle_split)
-        self.split_threshold = check_range("split_threshold", split_threshold, 0.0, np.inf, low_open=True,
-                                           high_open=True)
+        self.split_threshold = check_range(
+            "split_threshold", split_threshold, 0.0, np.inf, low_open=True, high_open=True
+        )
         self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
@@ -159,11 +161,12 @@ class PlanningAVQ(BaseAgent):
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated, self._factor = scale_setting(self.env.observation_space, scale,
-                                                                   self.obs_bounds, scale_factor)
+        self._scale, self._estimated, self._factor = scale_setting(
+            self.env.observation_space, scale, self.obs_bounds, scale_factor
+        )
         self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
-        self._horizon = _model.horizon(self.env, self.gamma)
+        self._horizon = horizon(self.env, self.gamma)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete("PlanningAVQ", obs_space, act_space, "there is nothing to quantize")
@@ -195,8 +198,11 @@ class PlanningAVQ(BaseAgent):
     @property
     def v_opt_(self) -> float:
         """What an untried decision is worth now (``v_opt``, or with ``"auto"`` its value so far)."""
-        return float(self._model.a.MP[_model.ModelParam.V_OPT]) if self._is_setup else (
-            0.0 if self.v_opt == "auto" else float(self.v_opt))
+        return (
+            float(self._model.a.MP[_model.ModelParam.V_OPT])
+            if self._is_setup
+            else (0.0 if self.v_opt == "auto" else float(self.v_opt))
+        )
 
     @property
     def backups_(self) -> int:
@@ -208,17 +214,28 @@ class PlanningAVQ(BaseAgent):
 
     def _setup(self) -> None:
         n = self.env.observation_space.shape[0]
-        values = dict(self.get_params(), value_slope=-1.0 if self.value_slope is None else self.value_slope,
-                      split_after=0 if self.split_after is None else self.split_after)
+        values = dict(
+            self.get_params(),
+            value_slope=-1.0 if self.value_slope is None else self.value_slope,
+            split_after=0 if self.split_after is None else self.split_after,
+        )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(
-            V=np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n)), inv_scale=1.0 / self._scale,
-            P=pack_params(PlanParam, values), IP=pack_params(PlanIntParam, values, dtype=np.int64),
-            S=np.zeros(N_S, dtype=np.int64), F=np.zeros(N_F + n + 1), xs=np.zeros(n),
-            mem_x=np.zeros((self.memory, 2 * n)), mem_i=np.zeros((self.memory, 3), dtype=np.int64),
-            mem_f=np.zeros((self.memory, 2)), e_xs=np.zeros((0, n)))
-        self._model = _model.Model(self.n_actions, 0.0 if self.v_opt == "auto" else self.v_opt, self.v_min,
-                                   self.known_after, self.tol)
+            V=np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n)),
+            inv_scale=1.0 / self._scale,
+            P=pack_params(PlanParam, values),
+            IP=pack_params(PlanIntParam, values, dtype=np.int64),
+            S=np.zeros(N_S, dtype=np.int64),
+            F=np.zeros(N_F + n + 1),
+            xs=np.zeros(n),
+            mem_x=np.zeros((self.memory, 2 * n)),
+            mem_i=np.zeros((self.memory, 3), dtype=np.int64),
+            mem_f=np.zeros((self.memory, 2)),
+            e_xs=np.zeros((0, n)),
+        )
+        self._model = _model.Model(
+            self.n_actions, 0.0 if self.v_opt == "auto" else self.v_opt, self.v_min, self.known_after, self.tol
+        )
         #: The largest reward seen (v_opt="auto").
         self._r_max = -np.inf
         #: The observations counted for scale="auto" (none: no dimension is estimated).
@@ -227,7 +244,7 @@ class PlanningAVQ(BaseAgent):
         #: dispatcher (see _advance), or None.
         self._direct = None
         #: The fused loop for each maze's types (see _fused_runner).
-        self._loops: dict[tuple, _model.Compiled] = {}
+        self._loops: dict[tuple, Compiled] = {}
 
     def _make_room(self) -> None:
         """Room for the cells and edges one step may add (the kernels never reallocate). A reallocated array
@@ -279,12 +296,21 @@ class PlanningAVQ(BaseAgent):
             try:
                 r = float(r)
             except (TypeError, ValueError):
-                raise ValueError(f"reward {r!r} at step {int(S[EP_STEPS]) + 1} of episode "
-                                 f"{self.num_episodes + 1} is not a number") from None
+                raise ValueError(
+                    f"reward {r!r} at step {int(S[EP_STEPS]) + 1} of episode {self.num_episodes + 1} is not a number"
+                ) from None
             self._make_room()
             draws.reserve()
-            args = (self._ag, model.a, draws.src, x, r, bool(info.get("collision", False)), bool(terminated),
-                    bool(truncated))
+            args = (
+                self._ag,
+                model.a,
+                draws.src,
+                x,
+                r,
+                bool(info.get("collision", False)),
+                bool(terminated),
+                bool(truncated),
+            )
             flags = x.flags
             if direct is not None and flags.c_contiguous and flags.writeable:
                 a = direct(*args)
@@ -303,8 +329,9 @@ class PlanningAVQ(BaseAgent):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._estimated.any() and refresh_scale(self._scale, self._ag.inv_scale, self._estimated, self._spread,
-                                                   self._factor):
+        if self._estimated.any() and refresh_scale(
+            self._scale, self._ag.inv_scale, self._estimated, self._spread, self._factor
+        ):
             # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
             # follows them (the codebook keeps its vectors in observation units).
             memory.relocate(self._ag, self._model.a, -1, -1)
@@ -323,11 +350,20 @@ class PlanningAVQ(BaseAgent):
             return None
         mz = _maze_loop.maze_arguments(maze)
         # (called once per learn() or episode: directly after the first call, for this maze's types)
-        loop = self._loops.setdefault(maze_types(mz), _model.Compiled(run_plan_maze))
+        loop = self._loops.setdefault(maze_types(mz), Compiled(run_plan_maze))
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return loop(self._ag, self._model.a, self._rng, maze.np_random, mz, pos, int(budget_steps),
-                        int(budget_episodes), rec)
+            return loop(
+                self._ag,
+                self._model.a,
+                self._rng,
+                maze.np_random,
+                mz,
+                pos,
+                int(budget_steps),
+                int(budget_episodes),
+                rec,
+            )
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
@@ -342,7 +378,8 @@ class PlanningAVQ(BaseAgent):
         if self.n_cells == 0:
             raise RuntimeError("PlanningAVQ has no codebook yet; call learn() first")
         return Codebook.from_vectors(self._ag.V[: self.n_cells], self._scale).nearest_batch(
-            np.asarray(observations, dtype=np.float64))
+            np.asarray(observations, dtype=np.float64)
+        )
 
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         if self.n_cells == 0:
@@ -353,9 +390,16 @@ class PlanningAVQ(BaseAgent):
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
         ag = self._ag
-        arrays.update(codebook=self.codebook_, S=ag.S.copy(), F=ag.F.copy(), xs=ag.xs.copy(),
-                      mem_x=ag.mem_x.copy(), mem_i=ag.mem_i.copy(), mem_f=ag.mem_f.copy(),
-                      e_xs=ag.e_xs[: int(self._model.a.C[_model.N_EDGES])].copy())
+        arrays.update(
+            codebook=self.codebook_,
+            S=ag.S.copy(),
+            F=ag.F.copy(),
+            xs=ag.xs.copy(),
+            mem_x=ag.mem_x.copy(),
+            mem_i=ag.mem_i.copy(),
+            mem_f=ag.mem_f.copy(),
+            e_xs=ag.e_xs[: int(self._model.a.C[_model.N_EDGES])].copy(),
+        )
         arrays.update(self._model.state_dict())
         scale_meta, scale_arrays = scale_state(self._scale, self._spread)
         meta.update(scale_meta, reward_max=None if self._r_max == -np.inf else self._r_max)

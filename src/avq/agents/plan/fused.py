@@ -43,8 +43,7 @@ N_T = 5
 def maze_types(mz: Maze) -> tuple:
     """What Numba's type of ``mz`` depends on, cheaply (its fields' Python types, and its arrays' dtypes,
     dimensions and layout): a key under which an agent keeps the compiled loop it calls directly."""
-    return tuple((type(v), v.dtype, v.ndim, v.flags.c_contiguous) if isinstance(v, np.ndarray) else type(v)
-                 for v in mz)
+    return tuple((type(v), v.dtype, v.ndim, v.flags.c_contiguous) if isinstance(v, np.ndarray) else type(v) for v in mz)
 
 
 class PSTable(NamedTuple):
@@ -125,8 +124,20 @@ def _no_room(m: ModelArrays) -> bool:
 
 
 @njit(cache=True)
-def run_ps_grid_maze(m: ModelArrays, table: PSTable, gamma, epsilon, n_backups, rng, env_rng, mz: Maze, pos,
-                     budget_steps, budget_episodes, rec):
+def run_ps_grid_maze(
+    m: ModelArrays,
+    table: PSTable,
+    gamma,
+    epsilon,
+    n_backups,
+    rng,
+    env_rng,
+    mz: Maze,
+    pos,
+    budget_steps,
+    budget_episodes,
+    rec,
+):
     """Prioritized sweeping (``tabular-ps``) on a GridMaze: a state for every position on its first visit and
     :func:`avq.agents.plan.model.ps_step` at every step, as ``PrioritizedSweeping`` does stepping the
     environment. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the model may not hold a new

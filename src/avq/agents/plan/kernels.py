@@ -227,8 +227,11 @@ def end_record(S, F, rec_row) -> None:
 def room_left(ag: PlanArrays, m: ModelArrays) -> bool:
     """Whether the arrays hold what one step may add (:func:`step`'s contract with its caller)."""
     S = ag.S
-    return (S[SIZE] + APPENDS_PER_STEP <= ag.V.shape[0] and m.C[_model.N_STATES] + APPENDS_PER_STEP <= m.cnt.shape[0]
-            and m.C[_model.N_EDGES] + APPENDS_PER_STEP * (S[MEM_N] + 1) <= m.e_to.shape[0])
+    return (
+        S[SIZE] + APPENDS_PER_STEP <= ag.V.shape[0]
+        and m.C[_model.N_STATES] + APPENDS_PER_STEP <= m.cnt.shape[0]
+        and m.C[_model.N_EDGES] + APPENDS_PER_STEP * (S[MEM_N] + 1) <= m.e_to.shape[0]
+    )
 
 
 @njit(cache=True)
@@ -264,8 +267,7 @@ def start(ag: PlanArrays, m: ModelArrays, src, obs) -> int:
 
 
 @njit(cache=True)
-def step(ag: PlanArrays, m: ModelArrays, src, x, r: float, collision: bool, terminated: bool,
-         truncated: bool) -> int:
+def step(ag: PlanArrays, m: ModelArrays, src, x, r: float, collision: bool, terminated: bool, truncated: bool) -> int:
     """One environment step that reached ``x`` with reward ``r``: the action to take next, ``ENDED``, or
     ``NOT_FINITE`` (changing nothing). The caller makes room for :data:`APPENDS_PER_STEP` cells, for
     ``APPENDS_PER_STEP * (remembered + 1)`` more edges of the model, and for one decision's draws."""
@@ -306,8 +308,9 @@ def goes_on(ag: PlanArrays, r: float, j: int, d2: float, collision: bool, done: 
 
 
 @njit(cache=True)
-def end_transition(ag: PlanArrays, m: ModelArrays, src, x, collision: bool, terminated: bool, truncated: bool,
-                   j: int, d2: float) -> int:
+def end_transition(
+    ag: PlanArrays, m: ModelArrays, src, x, collision: bool, terminated: bool, truncated: bool, j: int, d2: float
+) -> int:
     """The current decision's aggregate transition ``(i, a) -> j`` ended at ``x`` (a finite observation whose
     nearest vector ``j`` and squared distance ``d2`` are known; the step is counted by :func:`goes_on`):
     record and plan, grow, and the next action or ``ENDED``. The rest of :func:`step`, which a fused loop
@@ -356,7 +359,7 @@ def end_transition(ag: PlanArrays, m: ModelArrays, src, x, collision: bool, term
         # Does the outcome disagree with what this decision led to before, more than distance explains?
         # (asked before the transition is recorded)
         n = x.shape[0]
-        other = F[N_F:N_F + n + 1]  # (scratch)
+        other = F[N_F : N_F + n + 1]  # (scratch)
         excess = -np.inf
         if IP[PlanIntParam.OUTCOME_SPLIT] and cnt[i, a] >= m.C[_model.KNOWN] and settled(cnt, m.C, jm):
             seen = F[RET] + (0.0 if terminated else F[DISC] * m.V[j])

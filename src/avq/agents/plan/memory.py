@@ -36,7 +36,7 @@ def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_s
     ``w`` changed (moved or new): among ``k``, ``u``, ``w`` unless it was in one of them or ``u < 0`` (the
     metric changed: then among all), lowest index on ties as :func:`avq.quantizer.nearest_index`."""
     if k == u or k == w or u < 0:
-        best, _ = nearest_index(V, size, X[t, off:off + V.shape[1]], inv_scale)
+        best, _ = nearest_index(V, size, X[t, off : off + V.shape[1]], inv_scale)
         return best
     best = k
     best_d = _row_distance2(X, t, off, V, k, inv_scale)
@@ -51,8 +51,9 @@ def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_s
 
 
 @njit(cache=True, inline="always")
-def record_with_start(m: ModelArrays, e_xs, X, t: int, s: int, a: int, r: float, disc: float, s2: int,
-                      sign: int) -> None:
+def record_with_start(
+    m: ModelArrays, e_xs, X, t: int, s: int, a: int, r: float, disc: float, s2: int, sign: int
+) -> None:
     """:func:`avq.agents.plan.model.record`, and the transition's start ``X[t, :n]`` added to (or removed from)
     its edge's sum of starts ``e_xs``."""
     e = record(m, s, a, r, disc, s2, sign)

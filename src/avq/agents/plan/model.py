@@ -39,17 +39,17 @@ record, :class:`ModelArrays` (``m.cnt``, ``m.Q``...), and the few small ones of 
 from __future__ import annotations
 
 from enum import auto
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from avq._numba import borrowed, direct_call
+from avq._numba import Compiled, borrowed
 from avq.agents._params import ParamIndex, pack_params
 from avq.agents._td import epsilon_greedy
 from avq.agents.plan.queue import HEAP_N, pop, push
 
-__all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "Compiled"]
+__all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model"]
 
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
@@ -66,6 +66,7 @@ class ModelParam(ParamIndex):
     V_OPT = auto()  # value of a pair not yet known (optimism)
     V_MIN = auto()  # floor of every known value
     TOL = auto()  # smallest change of a value that is propagated
+
 
 #: The priority that makes a state's backup come first.
 FIRST = 1e300
@@ -108,43 +109,53 @@ class ModelArrays(NamedTuple):
     MP: np.ndarray
 
 
-class Compiled:
-    """A compiled function called from Python: through Numba's dispatcher the first time, then directly
-    (:func:`avq._numba.direct_call`). Typing a record of arrays at every call costs the dispatcher several µs,
-    as much as a sweep of a small model. Only for calls whose arguments keep their types: records whose arrays
-    are reallocated with the same dtypes, dimensions and layout (:meth:`Model.reserve`), ints, floats, bools."""
-
-    def __init__(self, dispatcher: Any) -> None:
-        self.dispatcher = dispatcher
-        self.entry: Any = None
-
-    def __call__(self, *args: Any) -> Any:
-        if self.entry is not None:
-            return self.entry(*args)
-        out = self.dispatcher(*args)
-        self.entry = direct_call(self.dispatcher, args)
-        return out
-
-
 @njit(cache=True, inline="always")
 def borrowed_model(m: ModelArrays) -> ModelArrays:
     """``m`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for a fused loop's own use."""
-    return ModelArrays(borrowed(m.cnt), borrowed(m.rsum), borrowed(m.head), borrowed(m.Q), borrowed(m.V),
-                       borrowed(m.e_to), borrowed(m.e_next), borrowed(m.e_n), borrowed(m.e_disc), borrowed(m.e_r),
-                       borrowed(m.p_head), borrowed(m.p_sa), borrowed(m.p_edge), borrowed(m.p_next), borrowed(m.heap),
-                       borrowed(m.hpos), borrowed(m.prio), borrowed(m.C), borrowed(m.MP))
+    return ModelArrays(
+        borrowed(m.cnt),
+        borrowed(m.rsum),
+        borrowed(m.head),
+        borrowed(m.Q),
+        borrowed(m.V),
+        borrowed(m.e_to),
+        borrowed(m.e_next),
+        borrowed(m.e_n),
+        borrowed(m.e_disc),
+        borrowed(m.e_r),
+        borrowed(m.p_head),
+        borrowed(m.p_sa),
+        borrowed(m.p_edge),
+        borrowed(m.p_next),
+        borrowed(m.heap),
+        borrowed(m.hpos),
+        borrowed(m.prio),
+        borrowed(m.C),
+        borrowed(m.MP),
+    )
 
 
 def _empty(states: int, m: int, edges: int, v_opt: float) -> ModelArrays:
     return ModelArrays(
-        cnt=np.zeros((states, m), dtype=np.int64), rsum=np.zeros((states, m)),
-        head=np.full((states, m), -1, dtype=np.int64), Q=np.full((states, m), v_opt), V=np.full(states, v_opt),
-        e_to=np.zeros(edges, dtype=np.int64), e_next=np.zeros(edges, dtype=np.int64),
-        e_n=np.zeros(edges, dtype=np.int64), e_disc=np.zeros(edges), e_r=np.zeros(edges),
-        p_head=np.full(states, -1, dtype=np.int64), p_sa=np.zeros(edges, dtype=np.int64),
-        p_edge=np.zeros(edges, dtype=np.int64), p_next=np.zeros(edges, dtype=np.int64),
-        heap=np.zeros(states, dtype=np.int64), hpos=np.full(states, -1, dtype=np.int64), prio=np.zeros(states),
-        C=np.zeros(N_C, dtype=np.int64), MP=np.zeros(len(ModelParam)),
+        cnt=np.zeros((states, m), dtype=np.int64),
+        rsum=np.zeros((states, m)),
+        head=np.full((states, m), -1, dtype=np.int64),
+        Q=np.full((states, m), v_opt),
+        V=np.full(states, v_opt),
+        e_to=np.zeros(edges, dtype=np.int64),
+        e_next=np.zeros(edges, dtype=np.int64),
+        e_n=np.zeros(edges, dtype=np.int64),
+        e_disc=np.zeros(edges),
+        e_r=np.zeros(edges),
+        p_head=np.full(states, -1, dtype=np.int64),
+        p_sa=np.zeros(edges, dtype=np.int64),
+        p_edge=np.zeros(edges, dtype=np.int64),
+        p_next=np.zeros(edges, dtype=np.int64),
+        heap=np.zeros(states, dtype=np.int64),
+        hpos=np.full(states, -1, dtype=np.int64),
+        prio=np.zeros(states),
+        C=np.zeros(N_C, dtype=np.int64),
+        MP=np.zeros(len(ModelParam)),
     )
 
 
@@ -220,8 +231,10 @@ class Model:
     def state_dict(self) -> dict[str, np.ndarray]:
         """The arrays in use, for a model file."""
         a, s, e = self.a, self.n_states, int(self.a.C[N_EDGES])
-        return {"m_" + name: arr[: {"S": s, "E": e, "-": len(arr)}[_DIM[name]]].copy()
-                for name, arr in zip(ModelArrays._fields, a)}
+        return {
+            "m_" + name: arr[: {"S": s, "E": e, "-": len(arr)}[_DIM[name]]].copy()
+            for name, arr in zip(ModelArrays._fields, a)
+        }
 
     def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
         """Restore what :meth:`state_dict` gave (shapes are checked by the caller's file format)."""
@@ -234,26 +247,28 @@ class Model:
             arr[: len(src)] = src
 
 
-#: The horizon of ``v_opt="auto"`` on a task with ``gamma = 1`` and no time limit.
-UNLIMITED_HORIZON = 1000
-
-
-def horizon(env: Any, gamma: float) -> float:
-    """What ``v_opt="auto"`` multiplies the largest reward by: the discounted number of steps an episode may
-    last, ``1 + gamma + ... + gamma ** (L - 1)`` for the environment's time limit ``L``
-    (``env.spec.max_episode_steps``; ``L`` itself with ``gamma = 1``); without a limit ``1 / (1 - gamma)``, or
-    :data:`UNLIMITED_HORIZON` with ``gamma = 1``."""
-    spec = getattr(env, "spec", None)
-    limit = getattr(spec, "max_episode_steps", None)
-    if gamma == 1.0:
-        return float(limit) if limit else float(UNLIMITED_HORIZON)
-    return (1.0 - gamma ** limit) / (1.0 - gamma) if limit else 1.0 / (1.0 - gamma)
-
-
 #: Which capacity each array's first dimension follows: states, edges, or its own length.
-_DIM = {"cnt": "S", "rsum": "S", "head": "S", "Q": "S", "V": "S", "e_to": "E", "e_next": "E", "e_n": "E",
-        "e_disc": "E", "e_r": "E", "p_head": "S", "p_sa": "E", "p_edge": "E", "p_next": "E", "heap": "S", "hpos": "S",
-        "prio": "S", "C": "-", "MP": "-"}
+_DIM = {
+    "cnt": "S",
+    "rsum": "S",
+    "head": "S",
+    "Q": "S",
+    "V": "S",
+    "e_to": "E",
+    "e_next": "E",
+    "e_n": "E",
+    "e_disc": "E",
+    "e_r": "E",
+    "p_head": "S",
+    "p_sa": "E",
+    "p_edge": "E",
+    "p_next": "E",
+    "heap": "S",
+    "hpos": "S",
+    "prio": "S",
+    "C": "-",
+    "MP": "-",
+}
 
 
 @njit(cache=True)
@@ -276,8 +291,18 @@ def add_state(m: ModelArrays) -> int:
 @njit(cache=True, inline="always")
 def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
-    cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (m.cnt, m.rsum, m.head, m.Q, m.V, m.e_to, m.e_next,
-                                                           m.e_disc, m.C, m.MP)  # (taken once: see ModelArrays)
+    cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (
+        m.cnt,
+        m.rsum,
+        m.head,
+        m.Q,
+        m.V,
+        m.e_to,
+        m.e_next,
+        m.e_disc,
+        m.C,
+        m.MP,
+    )  # (taken once: see ModelArrays)
     best = -np.inf
     for a in range(Q.shape[1]):
         n = cnt[s, a]
@@ -413,8 +438,9 @@ def observe(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, budg
 
 
 @njit(cache=True, inline="always")
-def ps_step(m: ModelArrays, src, s: int, a: int, r: float, gamma: float, s2: int, terminated: bool, epsilon: float,
-            budget: int) -> int:
+def ps_step(
+    m: ModelArrays, src, s: int, a: int, r: float, gamma: float, s2: int, terminated: bool, epsilon: float, budget: int
+) -> int:
     """One step of ``tabular-ps`` (a state per observation): record ``(s, a) -> s2`` with reward ``r`` and
     discount ``gamma`` (terminal: no successor), plan (:func:`observe`), then the next action in ``s2``,
     ε-greedy (``a`` itself on a terminal step, which draws nothing). Both paths call it."""

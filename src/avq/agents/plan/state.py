@@ -16,7 +16,7 @@ slope (return per unit of scaled distance travelled, and how many); then ``n + 1
 from __future__ import annotations
 
 from enum import auto
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -88,6 +88,32 @@ class PlanArrays(NamedTuple):
 @njit(cache=True, inline="always")
 def borrowed_plan(ag: PlanArrays) -> PlanArrays:
     """``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for a fused loop's own use."""
-    return PlanArrays(borrowed(ag.V), borrowed(ag.inv_scale), borrowed(ag.P), borrowed(ag.IP), borrowed(ag.S),
-                      borrowed(ag.F), borrowed(ag.xs), borrowed(ag.mem_x), borrowed(ag.mem_i), borrowed(ag.mem_f),
-                      borrowed(ag.e_xs))
+    return PlanArrays(
+        borrowed(ag.V),
+        borrowed(ag.inv_scale),
+        borrowed(ag.P),
+        borrowed(ag.IP),
+        borrowed(ag.S),
+        borrowed(ag.F),
+        borrowed(ag.xs),
+        borrowed(ag.mem_x),
+        borrowed(ag.mem_i),
+        borrowed(ag.mem_f),
+        borrowed(ag.e_xs),
+    )
+
+
+#: The horizon of ``v_opt="auto"`` on a task with ``gamma = 1`` and no time limit.
+UNLIMITED_HORIZON = 1000
+
+
+def horizon(env: Any, gamma: float) -> float:
+    """What ``v_opt="auto"`` multiplies the largest reward by: the discounted number of steps an episode may
+    last, ``1 + gamma + ... + gamma ** (L - 1)`` for the environment's time limit ``L``
+    (``env.spec.max_episode_steps``; ``L`` itself with ``gamma = 1``); without a limit ``1 / (1 - gamma)``, or
+    :data:`UNLIMITED_HORIZON` with ``gamma = 1``."""
+    spec = getattr(env, "spec", None)
+    limit = getattr(spec, "max_episode_steps", None)
+    if gamma == 1.0:
+        return float(limit) if limit else float(UNLIMITED_HORIZON)
+    return (1.0 - gamma**limit) / (1.0 - gamma) if limit else 1.0 / (1.0 - gamma)

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._numba import direct_call
+from avq._numba import Compiled, direct_call
 from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
 from avq.agents import _maze_loop
 from avq.agents._per_step import PerStepAgent
@@ -86,17 +86,21 @@ class PrioritizedSweeping(PerStepAgent):
         self.bins = None if bins is None else check_int_or_ints("bins", bins)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         if self.obs_bounds is not None and self.bins is None:
-            raise ValueError("obs_bounds is the box that bins cuts: give bins too (or neither, for a state per "
-                             "distinct observation)")
+            raise ValueError(
+                "obs_bounds is the box that bins cuts: give bins too (or neither, for a state per distinct observation)"
+            )
         self.max_states = check_int("max_states", max_states, 1)
         self.fused = check_bool("fused", fused)
         super().__init__(env, seed)
         if self.bins is not None:
             self._low, _, self._bins, self._bins_per_unit, self._strides = uniform_grid(
-                self.env.observation_space, self.obs_bounds, self.bins)
+                self.env.observation_space, self.obs_bounds, self.bins
+            )
             if math.prod(self._bins.tolist()) > 1 << 62:
-                raise ValueError(f"bins gives {math.prod(self._bins.tolist()):.3g} bins in {len(self._bins)} dimensions, "
-                                 "more than a bin index can hold; use fewer bins or avq-plan")
+                raise ValueError(
+                    f"bins gives {math.prod(self._bins.tolist()):.3g} bins in {len(self._bins)} dimensions, "
+                    "more than a bin index can hold; use fewer bins or avq-plan"
+                )
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         if not isinstance(act_space, spaces.Discrete):
@@ -146,7 +150,7 @@ class PrioritizedSweeping(PerStepAgent):
         #: (see _advance), or None.
         self._direct = None
         #: The fused loop for each maze's types (see _fused_runner).
-        self._loops: dict[tuple, _model.Compiled] = {}
+        self._loops: dict[tuple, Compiled] = {}
 
     def _key(self, obs: Any) -> Any:
         """The state's key: its flat bin index with ``bins``, else the observation's (a Discrete index or a tuple)."""
@@ -163,8 +167,10 @@ class PrioritizedSweeping(PerStepAgent):
         if row is not None or not create:
             return -1 if row is None else row
         if len(self._keys) >= self.max_states:
-            raise ValueError(f"PrioritizedSweeping has seen {len(self._keys)} distinct observations (max_states); "
-                             "the observation space is too fine for a table: use an AVQ agent")
+            raise ValueError(
+                f"PrioritizedSweeping has seen {len(self._keys)} distinct observations (max_states); "
+                "the observation space is too fine for a table: use an AVQ agent"
+            )
         row = self._model.add_state()
         self._index[key] = row
         self._keys.append(key)
@@ -207,19 +213,34 @@ class PrioritizedSweeping(PerStepAgent):
         return episode_record(self._ep_steps, self._ep_return, self.n_cells, self._ep_new)
 
     def _fused_runner(self):
-        maze = (_maze_loop.plan(self.env, grid_only=True) if self.fused and not self._discrete and self.bins is None
-                else None)
+        maze = (
+            _maze_loop.plan(self.env, grid_only=True)
+            if self.fused and not self._discrete and self.bins is None
+            else None
+        )
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer states than squares, the Python path says when max_states is reached)
         h, w = maze.dynamics.walls.shape
         mz = _maze_loop.maze_arguments(maze)
         model = self._model
         # (called once per learn() or episode: directly after the first call, for this maze's types)
-        loop = self._loops.setdefault(maze_types(mz), _model.Compiled(run_ps_grid_maze))
+        loop = self._loops.setdefault(maze_types(mz), Compiled(run_ps_grid_maze))
 
         def kernel(pos, budget_steps, budget_episodes, rec):
-            return loop(model.a, table, self.gamma, self.epsilon, self.n_backups, self._rng, maze.np_random, mz,
-                        pos, int(budget_steps), int(budget_episodes), rec)
+            return loop(
+                model.a,
+                table,
+                self.gamma,
+                self.epsilon,
+                self.n_backups,
+                self._rng,
+                maze.np_random,
+                mz,
+                pos,
+                int(budget_steps),
+                int(budget_episodes),
+                rec,
+            )
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             nonlocal table
@@ -229,12 +250,14 @@ class PrioritizedSweeping(PerStepAgent):
             for key, row in self._index.items():
                 row_of[int(key[1]), int(key[0])] = row
                 keys[row] = int(key[0]), int(key[1])
-            T = np.array([self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)],
-                         dtype=np.int64)  # (indexed by fused.T_*)
+            T = np.array(
+                [self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)], dtype=np.int64
+            )  # (indexed by fused.T_*)
             table = PSTable(row_of, keys, T, np.array([self._ep_return]))
             first_new = model.n_states
-            steps, rows = _maze_loop.drive(maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps,
-                                       max_episodes, max_records)
+            steps, rows = _maze_loop.drive(
+                maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps, max_episodes, max_records
+            )
             for row in range(first_new, model.n_states):
                 key = (float(keys[row, 0]), float(keys[row, 1]))
                 self._index[key] = row
