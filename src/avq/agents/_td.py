@@ -1,4 +1,4 @@
-"""The learning rule as small compiled functions on arrays (SPEC §2, §5): one copy, called by every agent
+"""The learning rule as small compiled functions on arrays (docs/explanation/paper.md#acting, #learning): one copy, called by every agent
 and every path (the fused loops, and the generic path's one compiled call per step).
 
 Names follow the time-indexed convention: ``q_tm1`` is the value of the decision
@@ -70,7 +70,7 @@ def nth_tie(values: np.ndarray, row: int, pick: int) -> int:
 
 @njit(cache=True, inline="always")
 def epsilon_greedy(src, values: np.ndarray, row: int, epsilon: float) -> int:
-    """ε-greedy over the profile ``values[row]``, ties broken uniformly at random (SPEC §2).
+    """ε-greedy over the profile ``values[row]``, ties broken uniformly at random (docs/explanation/paper.md#acting).
 
     Draws one uniform number; if it is below ``epsilon`` a uniformly random action
     is taken (one more draw), otherwise the greedy action, with one more draw only
@@ -86,7 +86,7 @@ def epsilon_greedy(src, values: np.ndarray, row: int, epsilon: float) -> int:
 
 @njit(cache=True, inline="always")
 def sarsa_td_error(q_tm1: float, r_t: float, discount_t: float, q_t: float, terminal: bool) -> float:
-    """TD error of one (aggregate) transition (SPEC §5).
+    """TD error of one (aggregate) transition (docs/explanation/paper.md#learning).
 
     ``discount_t`` is ``gamma ** k`` for a transition of ``k`` primitive steps and
     ``r_t`` its discounted return. A terminal transition does not bootstrap; a
@@ -130,7 +130,7 @@ def trace_update(
     trace_decay: float,
     replacing: bool,
 ) -> None:
-    """The Sarsa(λ) update in place (SPEC §5), over ``rows[:n_rows]`` (every row whose trace may be non-zero).
+    """The Sarsa(λ) update in place (docs/explanation/paper.md#learning), over ``rows[:n_rows]`` (every row whose trace may be non-zero).
 
     ``E[s, a] = 1`` (replacing) or ``+= 1`` (accumulating); ``Q += alpha * delta * E``;
     ``E *= trace_decay``, where ``trace_decay = gamma ** k * lambda``.

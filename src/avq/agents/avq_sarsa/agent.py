@@ -1,4 +1,4 @@
-"""Sarsa(λ) on an adaptive vector quantization of the observation space (SPEC §1-§5)."""
+"""Sarsa(λ) on an adaptive vector quantization of the observation space (docs/explanation/paper.md#setting-§5)."""
 
 from __future__ import annotations
 
@@ -39,8 +39,8 @@ class AVQSarsa(GenericPath):
     observation (its nearest vector under the scaled metric) is the aggregate state
     that Sarsa(λ) learns on. In each cell it takes one ε-greedy decision and repeats
     it until the cell changes, a collision is reported, or the episode ends
-    (SPEC §2), or (``max_repeat``) for at most a number of steps. Collisions append vectors (SPEC §3); after every ``merge_every``
-    episodes, mutually nearest cells with similar action values are merged (SPEC §4).
+    (docs/explanation/paper.md#acting), or (``max_repeat``) for at most a number of steps. Collisions append vectors (docs/explanation/paper.md#growing); after every ``merge_every``
+    episodes, mutually nearest cells with similar action values are merged (docs/explanation/paper.md#merging).
 
     Args:
         env: A Gymnasium environment (or registered id) with a ``Box`` observation
@@ -93,7 +93,7 @@ class AVQSarsa(GenericPath):
             action and the most similar profiles first (whatever ``rho``), so that the budget goes
             where growth is asked for.
         merge_pairs: Which pairs the merge pass considers. ``"mutual"`` (the paper,
-            SPEC §4): each the other's unique nearest vector (Fig. 2's strict ``<``).
+            docs/explanation/paper.md#merging): each the other's unique nearest vector (Fig. 2's strict ``<``).
             ``"mutual_ties"``: a tie for the nearest goes to the lowest index instead of
             blocking the pair (ties are common on integer grids). ``"nearest"``: each
             cell with its nearest, mutual or not, closest pairs first, each cell in at
@@ -102,7 +102,7 @@ class AVQSarsa(GenericPath):
             (beyond the paper: a merge then never changes the action taken anywhere in
             the two cells; the paper merges on similar profiles alone).
         value_trigger: TD-error magnitude ``theta`` that appends the transition's end
-            state (SPEC §3, optional trigger), terminal states included (a cell at a
+            state (docs/explanation/paper.md#growing, optional trigger), terminal states included (a cell at a
             failure state sharpens the partition where it matters); None turns it off.
         reward_trigger: On a step without a collision, a reward that differs from the
             previous step's (same episode) by at least this much appends the new

@@ -46,7 +46,7 @@ def _shrunk(Q, E, act, S, size: int, new_size: int) -> None:
 
 @njit(cache=True)
 def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
-    """SPEC §4: merge every mutually nearest pair whose profiles differ by less than rho.
+    """The paper (docs/explanation/paper.md#merging): merge every mutually nearest pair whose profiles differ by less than rho.
 
     With ``merge_age > 0`` both cells must have lived ``merge_age`` complete episodes
     after the one that created them. Merged cells take the lower index; later cells
@@ -66,7 +66,9 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     n_keep = 0
     for k in range(pairs.shape[0]):
         i, j = pairs[k, 0], pairs[k, 1]
-        if not similar_profiles(Q[i], Q[j], P[FloatParam.RHO]):  # SPEC §4, criterion 2
+        if not similar_profiles(
+            Q[i], Q[j], P[FloatParam.RHO]
+        ):  # The paper (docs/explanation/paper.md#merging), criterion 2
             continue
         if not old_enough(S[EPISODES], born[i, 0], born[j, 0], IP[IntParam.MERGE_AGE]):
             continue
@@ -102,7 +104,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             chosen[c, 0] = i
             chosen[c, 1] = j
             c += 1
-            merge_profiles(Q[i], Q[j], Q[i])  # SPEC §4
+            merge_profiles(Q[i], Q[j], Q[i])  # docs/explanation/paper.md#merging
             born[i, 0] = S[EPISODES]
             born[i, 1] = max(born[i, 1], born[j, 1])
             for b in range(2, born.shape[1]):

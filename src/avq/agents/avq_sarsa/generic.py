@@ -128,7 +128,7 @@ def _cut(buf: np.ndarray, start: int, shapes: tuple) -> list[np.ndarray]:
 
 @njit(cache=True)
 def generic_start(fb, ib, raw, cursor, obs) -> int:
-    """Start an episode at ``obs`` (SPEC §3's first vector if the codebook is empty) and decide its
+    """Start an episode at ``obs`` (docs/explanation/paper.md#growing's first vector if the codebook is empty) and decide its
     first action; or ``NEED_ROOM`` / ``NEED_DRAWS`` / ``BAD_SHAPE`` / ``NOT_FINITE``, changing nothing."""
     raw, cursor = borrowed(raw), borrowed(cursor)
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, scr = unpack(fb, ib)
@@ -256,7 +256,7 @@ class GenericPath(BaseAgent):
             raise ValueError(f"observation at step {step} has shape {x.shape}; the space says {self._V.shape[1:]}")
         return x
 
-    # -- the episode loop (SPEC §2, §5; the rules are in avq.agents.avq_sarsa.kernels) --------------
+    # -- the episode loop (docs/explanation/paper.md#acting, §5; the rules are in avq.agents.avq_sarsa.kernels) --------------
     def _compiled(self, kernel, obs: np.ndarray, step: int, r: Any, *args: Any) -> int:
         """``kernel(buffers, draws, obs, *args)``, growing the arrays or the draws when it asks for them;
         raises for an observation of the wrong shape, or an observation or reward that is not finite."""

@@ -131,7 +131,7 @@ NOT_FINITE = -2
 
 @njit(cache=True, inline="always")
 def _may_append(dist_nearest: float, P, IP, S) -> bool:
-    """SPEC §3: never within d_min of an existing vector; never beyond max_cells (counted)."""
+    """The paper (docs/explanation/paper.md#growing): never within d_min of an existing vector; never beyond max_cells (counted)."""
     if not may_append(dist_nearest, P[FloatParam.D_MIN]):
         return False
     if S[SIZE] >= IP[IntParam.MAX_CELLS]:
@@ -142,7 +142,7 @@ def _may_append(dist_nearest: float, P, IP, S) -> bool:
 
 @njit(cache=True, inline="always")
 def _append(V, Q, E, born, S, x, parent: int) -> int:
-    """Append ``x`` as a cell whose profile is a copy of ``parent``'s (SPEC §3)."""
+    """Append ``x`` as a cell whose profile is a copy of ``parent``'s (docs/explanation/paper.md#growing)."""
     c = append_vector(V, S[SIZE], x)
     # Element loops, not slices: slice assignment drags shape-error formatting into the hot path.
     for b in range(Q.shape[1]):
@@ -170,7 +170,7 @@ def bonus_values(Q, born, P, j: int, out) -> None:
 def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
     if S[SIZE] == 0:
-        # SPEC §3: the codebook starts with the very first observation.
+        # The paper (docs/explanation/paper.md#growing): the codebook starts with the very first observation.
         for d in range(x.shape[0]):
             V[0, d] = x[d]
         for b in range(Q.shape[1]):
@@ -205,7 +205,7 @@ def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collisi
 
     Returns -1 while the aggregate transition goes on (same cell, no collision, not
     ``done``, fewer than ``max_repeat`` steps), else the cell ``j`` it ends in, after
-    the growth rules of SPEC §3 that act at once (collision; reward jump). Returns ``NOT_FINITE``, changing
+    the growth rules of the paper (docs/explanation/paper.md#growing) that act at once (collision; reward jump). Returns ``NOT_FINITE``, changing
     nothing, when ``x`` or ``r`` is NaN or infinite.
     """
     if not math.isfinite(r):
@@ -237,12 +237,12 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
         for d in range(x.shape[0]):
             V[j, d] += P[FloatParam.ADAPT_RATE] * (x[d] - V[j, d])
         S[GEOM] += 1
-    # SPEC §2: the decision goes on while the cell stays the same; beyond the paper, for at most max_repeat
+    # The paper (docs/explanation/paper.md#acting): the decision goes on while the cell stays the same; beyond the paper, for at most max_repeat
     # steps, after which it ends in that same cell and learn() takes it as any other aggregate transition.
     if decision_goes_on(j == i, collision, done) and not repeat_limit_reached(S[REPEATS], IP[IntParam.MAX_REPEAT]):
         return -1
     if collision:
-        # SPEC §3, collision rule (avq.rules.collision_rule).
+        # The paper (docs/explanation/paper.md#growing), collision rule (avq.rules.collision_rule).
         dist_i = dist_j if j == i else scaled_distance(V, i, x, inv_scale)
         outcome = collision_rule(dist_i, dist_j, P[FloatParam.D_MIN])
         if (
@@ -265,9 +265,9 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
 
 @njit(cache=True, inline="always")
 def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
-    """SPEC §5: the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
+    """The paper (docs/explanation/paper.md#learning): the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
 
-    Then the optional value-change trigger (SPEC §3). Moves the agent to the next
+    Then the optional value-change trigger (docs/explanation/paper.md#growing). Moves the agent to the next
     decision and returns its cell.
     """
     i = S[CELL]
@@ -319,7 +319,7 @@ def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int
 
 @njit(cache=True, inline="always")
 def decide(src, Q, born, P, j: int, scr) -> int:
-    """The ε-greedy decision in cell ``j`` (SPEC §2): on ``Q``, or with count-based exploration on
+    """The ε-greedy decision in cell ``j`` (docs/explanation/paper.md#acting): on ``Q``, or with count-based exploration on
     the bonus values (into the scratch row ``scr``, shape ``(1, m)``)."""
     if P[FloatParam.EXPLORE_BONUS] > 0.0:
         bonus_values(Q, born, P, j, scr)
