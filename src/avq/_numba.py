@@ -64,6 +64,9 @@ class Compiled:
         self.dispatcher = dispatcher
         self.entry: Any = None
 
+    def __getstate__(self) -> dict[str, Any]:
+        return {"dispatcher": self.dispatcher, "entry": None}  # (the entry point cannot be pickled; found again)
+
     def __call__(self, *args: Any) -> Any:
         if self.entry is not None:
             return self.entry(*args)

@@ -1,3 +1,5 @@
+# (Numba's @intrinsic borrowed() is typed by Numba with its typing context as first argument.)
+# mypy: disable-error-code="call-arg,unused-ignore"
 """The shared driver of fused training: a built-in maze's dynamics and an agent's rules in one compiled loop.
 
 :func:`plan` decides whether an environment can be fused: a ``GridMaze``, or a ``RobotMaze``
