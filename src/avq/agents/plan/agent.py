@@ -212,6 +212,12 @@ class PlanningAVQ(BaseAgent):
     def queued_(self) -> int:
         return self._model.queued
 
+    def __getstate__(self) -> dict[str, Any]:
+        # The compiled entry point of the last step cannot be pickled; the next step finds it again.
+        state = self.__dict__.copy()
+        state["_direct"] = None
+        return state
+
     def _setup(self) -> None:
         n = self.env.observation_space.shape[0]
         values = dict(

@@ -140,6 +140,12 @@ class PrioritizedSweeping(PerStepAgent):
     def queued_(self) -> int:
         return self._model.queued
 
+    def __getstate__(self) -> dict[str, Any]:
+        # The compiled entry point of the last step cannot be pickled; the next step finds it again.
+        state = self.__dict__.copy()
+        state["_direct"] = None
+        return state
+
     def _setup(self) -> None:
         self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
         self._index: dict[Any, int] = {}
