@@ -18,42 +18,19 @@ from avq import _compile_cache
 _compile_cache.configure()
 
 from avq import (
+    agents,
     checks,  # noqa: F401  (avq.checks.check_agent, the conformance checker, after ``import avq``)
     envs,  # noqa: F401  (registers the environments)
 )
 from avq._version import __version__
-from avq.agents import (
-    AGENTS,
-    ActionCodebookSarsa,
-    AVQSarsa,
-    BaseAgent,
-    CheckpointCallback,
-    GridSarsa,
-    PlanningAVQ,
-    PrioritizedSweeping,
-    TabularSarsa,
-    TileSarsa,
-    load,
-    make_agent,
-)
+from avq.agents import *  # noqa: F403  (the agent classes, callbacks, make_agent, load: avq.agents.__all__)
 from avq.evaluation import evaluate_maze
 from avq.quantizer import Codebook
 from avq.sweep import run_sweep
 
 __all__ = [
-    "AVQSarsa",
-    "PlanningAVQ",
-    "TabularSarsa",
-    "PrioritizedSweeping",
-    "GridSarsa",
-    "TileSarsa",
-    "ActionCodebookSarsa",
-    "BaseAgent",
-    "CheckpointCallback",
+    *agents.__all__,  # noqa: F405
     "Codebook",
-    "AGENTS",
-    "make_agent",
-    "load",
     "evaluate_maze",
     "run_sweep",
     "__version__",

@@ -10,6 +10,8 @@ import numpy as np
 from gymnasium import spaces
 
 __all__ = [
+    "check_discrete_actions",
+    "check_table_spaces",
     "resolve_bounds",
     "resolve_scale",
     "auto_scale",
@@ -290,6 +292,11 @@ def check_box_discrete(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
         )
     if not isinstance(obs_space, spaces.Box) or len(obs_space.shape) != 1:
         raise ValueError(f"{agent} needs a 1-D Box observation space, not {obs_space}")
+    check_discrete_actions(agent, act_space)
+
+
+def check_discrete_actions(agent: str, act_space: spaces.Space) -> None:
+    """Require ``Discrete`` actions; a ``Box`` action space gets a message pointing to the agents for it."""
     if not isinstance(act_space, spaces.Discrete):
         raise ValueError(
             f"{agent} needs a Discrete action space, not {act_space}"
@@ -299,3 +306,12 @@ def check_box_discrete(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
                 else ""
             )
         )
+
+
+def check_table_spaces(agent: str, obs_space: spaces.Space, act_space: spaces.Space) -> bool:
+    """Require ``Discrete`` actions and a ``Discrete`` or ``Box`` observation space (a table's keys); True
+    when the observations are ``Discrete``."""
+    check_discrete_actions(agent, act_space)
+    if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
+        raise ValueError(f"{agent} needs a Discrete or Box observation space, not {obs_space}")
+    return isinstance(obs_space, spaces.Discrete)

@@ -10,6 +10,7 @@ from gymnasium import spaces
 
 from avq._validate import check_bool, check_int, check_sarsa_params
 from avq.agents import _maze_loop
+from avq.agents._spaces import check_table_spaces
 from avq.agents._td import SarsaParams
 from avq.agents.baselines.fused import Table, run_tabular_grid_maze
 from avq.agents.baselines.table import TableSarsa, greedy_over_rows, observation_key
@@ -63,18 +64,7 @@ class TabularSarsa(TableSarsa):
         super().__init__(env, seed)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(
-                f"TabularSarsa needs a Discrete action space, not {act_space}"
-                + (
-                    "; for continuous actions use the agent 'avq-actions' (or 'uniform-actions')"
-                    if isinstance(act_space, spaces.Box)
-                    else ""
-                )
-            )
-        if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
-            raise ValueError(f"TabularSarsa needs a Discrete or Box observation space, not {obs_space}")
-        self._discrete = isinstance(obs_space, spaces.Discrete)
+        self._discrete = check_table_spaces("TabularSarsa", obs_space, act_space)
 
     @property
     def q_(self) -> np.ndarray:

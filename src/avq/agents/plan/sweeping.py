@@ -15,7 +15,7 @@ from avq._numba import Compiled, direct_call
 from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
 from avq.agents import _maze_loop
 from avq.agents._per_step import PerStepAgent
-from avq.agents._spaces import check_box_discrete, normalize_obs_bounds
+from avq.agents._spaces import check_box_discrete, check_table_spaces, normalize_obs_bounds
 from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
@@ -103,11 +103,7 @@ class PrioritizedSweeping(PerStepAgent):
                 )
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        if not isinstance(act_space, spaces.Discrete):
-            raise ValueError(f"PrioritizedSweeping needs a Discrete action space, not {act_space}")
-        if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
-            raise ValueError(f"PrioritizedSweeping needs a Discrete or Box observation space, not {obs_space}")
-        self._discrete = isinstance(obs_space, spaces.Discrete)
+        self._discrete = check_table_spaces("PrioritizedSweeping", obs_space, act_space)
         if self.bins is not None:
             check_box_discrete("PrioritizedSweeping with bins", obs_space, act_space, "it is a table already")
 
