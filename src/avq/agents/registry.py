@@ -5,7 +5,8 @@ as RL Zoo keeps hyper-parameters per environment: a ``"*"`` entry used everywher
 environments, an entry that replaces it (all of it) there. An entry holds a one-line ``reason``, a
 link to the ``results`` that chose it, its ``params``, and may start from another entry
 (``base: {agent: ..., entry: ...}``, its params then added on top) or name another class
-(``class``: ``avq`` is Sarsa(λ) on the two mazes). Explicit parameters given to :func:`make_agent`
+(``class``: ``avq`` is Sarsa(λ) on the two mazes). A file's ``search`` is the space ``avq tune`` searches
+(:data:`SEARCH`; :mod:`avq.tune` reads it). Explicit parameters given to :func:`make_agent`
 win over the entry; the class's own signature defaults fill in what an entry leaves out.
 :func:`make_agent` records on the agent which entry it used (``agent.defaults_used``, a
 :class:`DefaultsUsed`) and ``avq train`` prints it.
@@ -34,6 +35,7 @@ __all__ = [
     "AGENTS",
     "DEFAULTS",
     "ENTRIES",
+    "SEARCH",
     "SUMMARIES",
     "DefaultsUsed",
     "Entry",
@@ -73,13 +75,16 @@ def _read(name: str) -> dict[str, Any]:
     return data
 
 
-def _load_all() -> dict[str, _Agent]:
-    names = sorted(
+def _names() -> list[str]:
+    return sorted(
         p.name[: -len(".yaml")]
         for p in resources.files("avq.agents").joinpath("defaults").iterdir()
         if p.name.endswith(".yaml")
     )
-    raw = {name: _read(name) for name in names}
+
+
+def _load_all() -> dict[str, _Agent]:
+    raw = {name: _read(name) for name in _names()}
     done: dict[tuple[str, str], Entry] = {}
 
     def resolve(name: str, key: str, seen: tuple[tuple[str, str], ...] = ()) -> Entry:
@@ -117,6 +122,16 @@ AGENTS: dict[str, tuple[type[BaseAgent], dict[str, Any]]] = {
 }
 #: name -> one paragraph on what the agent is (the reference's section per agent).
 SUMMARIES: dict[str, str] = {name: agent.summary for name, agent in _TABLE.items()}
+
+
+def _search(name: str) -> dict[str, Any]:
+    """The file's ``search``: parameter -> its range (checked by :mod:`avq.tune`), or another agent's name."""
+    space = _read(name).get("search") or {}
+    return _search(space) if isinstance(space, str) else dict(space)
+
+
+#: name -> the space ``avq tune`` searches by default: parameter -> ``{low, high, log, type}`` or ``{choices}``.
+SEARCH: dict[str, dict[str, Any]] = {name: _search(name) for name in _names()}
 
 
 class DefaultsUsed(NamedTuple):

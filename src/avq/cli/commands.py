@@ -164,6 +164,7 @@ def cmd_train(args: argparse.Namespace) -> int:
                 ("--set", args.set),
                 ("--env-kwargs", args.env_kwargs),
                 ("--config", args.config),
+                ("--from-study", args.from_study),
                 ("--checkpoint-every", args.checkpoint_every),
                 ("--animate", args.animate or None),
             )
@@ -186,6 +187,10 @@ def cmd_train(args: argparse.Namespace) -> int:
         _print_train_summary(summary)
         return 0
     config = _load_config(args.config) if args.config else {}
+    if args.from_study:
+        from avq.tune.cli import from_study
+
+        config = from_study(args, config)
     env_id = args.env or config.get("env")
     if not env_id:
         raise UsageError("--env is required (or 'env' in --config)")

@@ -11,6 +11,7 @@ import argparse
 from typing import Any, NoReturn
 
 from avq.cli.commands import UsageError, cmd_evaluate, cmd_reproduce, cmd_sweep, cmd_train
+from avq.tune.cli import add_from_study_options, add_tune_command
 
 __all__ = ["build_parser"]
 
@@ -133,6 +134,7 @@ def build_parser() -> _Parser:
         "agents with cells)",
     )
     tr.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
+    add_from_study_options(tr)
     tr.set_defaults(func=cmd_train)
 
     sw = command(
@@ -163,6 +165,7 @@ def build_parser() -> _Parser:
     sw.add_argument("--metric", help="report: the metric to rank by (default: the config's, else final_return)")
     sw.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     sw.set_defaults(func=cmd_sweep)
+    add_tune_command(command)
 
     ev = command(
         "evaluate",

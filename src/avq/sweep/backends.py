@@ -2,7 +2,9 @@
 
 Each backend takes the keyword arguments of every trial still to run and yields
 ``(k, result)`` pairs in the order the trials finish; a failed trial is a result
-with ``status`` ``failed``, so one failure stops nothing.
+with ``status`` ``failed``, so one failure stops nothing. What a job runs is ``fn``
+(default :func:`~avq.sweep.trial._safe_trial`; ``avq tune`` runs its workers the same way),
+a top-level function of the job's keyword arguments that returns a dict and does not raise.
 """
 
 from __future__ import annotations
@@ -57,25 +59,30 @@ def _check_backend(backend: str, address: str | None) -> None:
             raise ValueError(f"cannot reach the {backend} cluster at {address}: {exc.strerror or exc}") from None
 
 
-def _run_local(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> Iterator[tuple[int, dict]]:
+Job = Callable[[dict[str, Any]], dict[str, Any]]
+
+
+def _run_local(
+    jobs: list[dict[str, Any]], n_jobs: int, address: str | None, fn: Job = _safe_trial
+) -> Iterator[tuple[int, dict]]:
     if n_jobs == 1:
-        yield from (_indexed_trial(k, kw) for k, kw in enumerate(jobs))
+        yield from (_indexed_trial(k, kw, fn) for k, kw in enumerate(jobs))
         return
     from joblib import Parallel, delayed
 
     yield from Parallel(n_jobs=n_jobs, return_as="generator_unordered")(
-        delayed(_local_trial)(k, kw, os.getpid()) for k, kw in enumerate(jobs)
+        delayed(_local_trial)(k, kw, os.getpid(), fn) for k, kw in enumerate(jobs)
     )
 
 
-def _indexed_trial(k: int, kwargs: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-    return k, _safe_trial(kwargs)
+def _indexed_trial(k: int, kwargs: dict[str, Any], fn: Job = _safe_trial) -> tuple[int, dict[str, Any]]:
+    return k, fn(kwargs)
 
 
-def _local_trial(k: int, kwargs: dict[str, Any], sweep_pid: int) -> tuple[int, dict[str, Any]]:
+def _local_trial(k: int, kwargs: dict[str, Any], sweep_pid: int, fn: Job = _safe_trial) -> tuple[int, dict[str, Any]]:
     """:func:`_indexed_trial` in a joblib worker, which ends itself when the sweep's process is gone."""
     _exit_with(sweep_pid)
-    return _indexed_trial(k, kwargs)
+    return _indexed_trial(k, kwargs, fn)
 
 
 @functools.cache
@@ -100,7 +107,9 @@ def _exit_with(parent: int) -> None:
     threading.Thread(target=watch, name="avq-exit-with-sweep", daemon=True).start()
 
 
-def _run_ray(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> Iterator[tuple[int, dict]]:
+def _run_ray(
+    jobs: list[dict[str, Any]], n_jobs: int, address: str | None, fn: Job = _safe_trial
+) -> Iterator[tuple[int, dict]]:
     try:
         import ray
     except ImportError:
@@ -114,7 +123,7 @@ def _run_ray(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> It
         started = True
     try:
         remote = ray.remote(num_cpus=1)(_indexed_trial)
-        pending = [remote.remote(k, kw) for k, kw in enumerate(jobs)]
+        pending = [remote.remote(k, kw, fn) for k, kw in enumerate(jobs)]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             yield ray.get(ready[0])
@@ -123,7 +132,9 @@ def _run_ray(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> It
             ray.shutdown()
 
 
-def _run_dask(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> Iterator[tuple[int, dict]]:
+def _run_dask(
+    jobs: list[dict[str, Any]], n_jobs: int, address: str | None, fn: Job = _safe_trial
+) -> Iterator[tuple[int, dict]]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -135,7 +146,7 @@ def _run_dask(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> I
         cluster = LocalCluster(n_workers=n_jobs, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
-        futures = [client.submit(_indexed_trial, k, kw, pure=False) for k, kw in enumerate(jobs)]
+        futures = [client.submit(_indexed_trial, k, kw, fn, pure=False) for k, kw in enumerate(jobs)]
         for future in as_completed(futures):
             yield future.result()
     finally:
@@ -144,7 +155,7 @@ def _run_dask(jobs: list[dict[str, Any]], n_jobs: int, address: str | None) -> I
             cluster.close()
 
 
-_RUNNERS: dict[str, Callable[[list[dict[str, Any]], int, str | None], Iterator[tuple[int, dict]]]] = {
+_RUNNERS: dict[str, Callable[..., Iterator[tuple[int, dict]]]] = {
     "local": _run_local,
     "ray": _run_ray,
     "dask": _run_dask,

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SweepConfig", "read_sweep_config", "METRICS"]
+__all__ = ["SweepConfig", "read_sweep_config", "spawn_seeds", "METRICS"]
 
 #: Final metrics of a trial, in ``results.csv`` order, and whether higher is better.
 METRICS = {
@@ -127,8 +127,7 @@ def read_sweep_config(source: str | os.PathLike | dict[str, Any]) -> SweepConfig
         raise bad("root_seed", f"must be an integer >= 0, not {root_seed!r}")
     seeds = raw.get("seeds", 1)
     if _is_int(seeds, 1):
-        children = np.random.SeedSequence(int(root_seed)).spawn(int(seeds))
-        seed_list = tuple(int(c.generate_state(1)[0]) for c in children)
+        seed_list = spawn_seeds(int(root_seed), int(seeds))
     elif isinstance(seeds, list) and seeds and all(_is_int(s, 0) for s in seeds):
         if len(set(seeds)) != len(seeds):
             raise bad("seeds", "lists a seed twice")
@@ -169,6 +168,11 @@ def read_sweep_config(source: str | os.PathLike | dict[str, Any]) -> SweepConfig
     )
     _check_configurations(config, where)
     return config
+
+
+def spawn_seeds(root_seed: int, n: int) -> tuple[int, ...]:
+    """``n`` seeds, the children of ``numpy.random.SeedSequence(root_seed)``: a sweep's (and a tuning's) seeds."""
+    return tuple(int(c.generate_state(1)[0]) for c in np.random.SeedSequence(root_seed).spawn(n))
 
 
 def _configurations(config: SweepConfig) -> list[tuple[str, dict[str, Any]]]:

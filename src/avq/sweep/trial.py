@@ -18,7 +18,7 @@ import numpy as np
 from avq._io import ProgressLog, atomic_write_bytes
 from avq.sweep.config import SweepConfig, _configurations, _split
 
-__all__ = ["Trial", "plan_trials", "run_trial"]
+__all__ = ["Trial", "plan_trials", "run_trial", "final_return"]
 
 
 def _slug(text: str) -> str:
@@ -96,10 +96,8 @@ def run_trial(
     ProgressLog(progress, PROGRESS_COLUMNS).sync(model.history_)
     if save_model:
         model.save(out / "model.zip")
-    returns = model.episode_history().get("return", np.zeros(0))
-    tail = returns[-max(1, len(returns) // 10) :]
     summary: dict[str, Any] = {
-        "final_return": float(np.mean(tail)) if len(tail) else None,
+        "final_return": final_return(model),
         "eval_return": None,
         "success_rate": None,
         "path_ratio": None,
@@ -119,6 +117,14 @@ def run_trial(
     summary["wall_s"] = round(time.perf_counter() - t0, 3)  # training, evaluation and saving
     atomic_write_bytes(done, json.dumps(summary, indent=2).encode())
     return summary
+
+
+def final_return(model: Any) -> float | None:
+    """The mean return of the last 10% of a model's episodes (at least one): a sweep's and a tuning's
+    ``final_return``; None before the first episode."""
+    returns = model.episode_history().get("return", np.zeros(0))
+    tail = returns[-max(1, len(returns) // 10) :]
+    return float(np.mean(tail)) if len(tail) else None
 
 
 def _safe_trial(kwargs: dict[str, Any]) -> dict[str, Any]:

@@ -1,0 +1,129 @@
+"""The command line of tuning: ``avq tune`` (run, ``report``, ``export``) and ``avq train --from-study``.
+
+Kept beside :mod:`avq.tune` so that :mod:`avq.cli.parser` and :mod:`avq.cli.commands` only call in here.
+Nothing here imports Optuna until a command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_tune_command", "add_from_study_options", "from_study", "cmd_tune"]
+
+_DESCRIPTION = (
+    "avq tune --env ENV --agent NAME searches the agent's parameters with Optuna (TPE, the median pruner) in a "
+    "study stored at --storage (default: DIR/study.db, a SQLite file, with --out DIR, default tune/AGENT-ENV); "
+    "each trial trains on --seeds seeds and scores the mean of --metric over them. Every worker (--jobs "
+    "processes here, or --backend ray|dask) and every other 'avq tune' on the same --storage and "
+    "--study-name adds trials to the one study until it holds --n-trials; the same command continues a "
+    "stopped study. Prints the best trials at the end and writes DIR/best.yaml (the best parameters as an "
+    "entry of the agents' defaults). 'avq tune report' ranks a study's trials, 'avq tune export' prints that "
+    "entry, and 'avq train --from-study STORAGE' trains with the best parameters. Needs the extra avq[tune]."
+)
+
+
+def add_tune_command(command: Any) -> None:
+    """Add ``avq tune`` through the parser's ``command(name, **kwargs)`` helper."""
+    from avq.cli.parser import _positive_int
+
+    tu = command("tune", help="tune an agent's parameters for a task with Optuna", description=_DESCRIPTION)
+    tu.add_argument("action", nargs="?", choices=["run", "report", "export"], default="run", help="default run")
+    tu.add_argument("--env", help="registered Gymnasium id (default: the study's)")
+    tu.add_argument("--agent", help="agent name (default: the study's, else avq)")
+    tu.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make")
+    tu.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter fixed in every trial")
+    tu.add_argument("--space", metavar="FILE.yaml", help="search space (default: the agent's 'search' in its defaults)")
+    budget = tu.add_mutually_exclusive_group()
+    budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes a seed (default 300)")
+    budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="env steps a seed")
+    tu.add_argument(
+        "--evaluations", type=_positive_int("--evaluations"), help="reports to the pruner per trial (default 5)"
+    )
+    tu.add_argument("--seeds", type=_positive_int("--seeds"), help="seeds per trial (default 3)")
+    tu.add_argument("--seed", type=int, default=0, help="seeds the sampler and the trials' seeds (default 0)")
+    tu.add_argument("--metric", help="final_return (default), eval_return or success_rate")
+    tu.add_argument("--eval-episodes", type=_positive_int("--eval-episodes"), help="greedy episodes (default 10)")
+    tu.add_argument("--n-trials", type=int, default=20, help="trials the study holds when done (default 20)")
+    tu.add_argument("--timeout", type=float, metavar="SECONDS", help="start no trial after this time")
+    tu.add_argument("--jobs", type=_positive_int("--jobs"), default=1, help="parallel workers (default 1)")
+    tu.add_argument("--backend", choices=["local", "ray", "dask"], default="local", help="where workers run")
+    tu.add_argument("--address", help="cluster address (ray, dask); without one a local cluster is started")
+    tu.add_argument("--storage", metavar="URL", help="any Optuna storage URL, or a journal file (FILE.log)")
+    tu.add_argument("--study-name", help="default AGENT-ENV (report, export: the storage's only study)")
+    tu.add_argument("--out", metavar="DIR", help="where study.db (the default storage) and best.yaml go")
+    tu.add_argument("--pruner", choices=["median", "none"], default="median", help="default median")
+    tu.add_argument("--top", type=_positive_int("--top"), default=10, help="trials in the report (default 10)")
+    tu.set_defaults(func=cmd_tune)
+
+
+def add_from_study_options(train: argparse.ArgumentParser) -> None:
+    train.add_argument(
+        "--from-study",
+        metavar="STORAGE",
+        help="train with the best trial of an 'avq tune' study (its env, agent, budget and parameters; "
+        "other options win)",
+    )
+    train.add_argument("--study-name", help="with --from-study: the study (default: the storage's only one)")
+
+
+def from_study(args: argparse.Namespace, config: dict[str, Any]) -> dict[str, Any]:
+    """``config`` (of ``--config``) with the study's best trial on top."""
+    from avq.tune import study_config
+
+    best = study_config(args.from_study, args.study_name)
+    return {**config, **best, "params": {**(config.get("params") or {}), **best.get("params", {})}}
+
+
+def _storage(args: argparse.Namespace) -> str:
+    if args.storage:
+        return args.storage
+    if args.out:
+        return f"sqlite:///{Path(args.out).resolve() / 'study.db'}"
+    raise ValueError(f"avq tune {args.action}: give the study's --storage URL (or --out DIR of its study.db)")
+
+
+def cmd_tune(args: argparse.Namespace) -> int:
+    """``avq tune``: tune, then print the report; ``report`` and ``export`` read a study."""
+    from avq.cli.commands import key_values
+    from avq.tune import best_entry, report, require_optuna, tune
+
+    require_optuna()
+    if args.action != "run":
+        storage = _storage(args)
+        if args.action == "report":
+            print(report(storage, args.study_name, top=args.top))
+            return 0
+        entry = best_entry(storage, args.study_name)
+        if not entry:
+            raise ValueError("the study has no complete trial yet; nothing to export")
+        print(entry, end="")
+        return 0
+    summary = tune(
+        args.env,
+        args.agent,
+        storage=args.storage,
+        study_name=args.study_name,
+        out=args.out,
+        n_trials=args.n_trials,
+        timeout=args.timeout,
+        seeds=args.seeds,
+        seed=args.seed,
+        episodes=args.episodes,
+        timesteps=args.timesteps,
+        evaluations=args.evaluations,
+        metric=args.metric,
+        eval_episodes=args.eval_episodes,
+        env_kwargs=key_values(args.env_kwargs, "--env-kwargs") if args.env_kwargs else None,
+        fixed=key_values(args.set, "--set") if args.set else None,
+        space=args.space,
+        pruner=args.pruner,
+        jobs=args.jobs,
+        backend=args.backend,
+        address=args.address,
+    )
+    print(report(summary["storage"], summary["study_name"], top=args.top))
+    if summary["best_yaml"]:
+        print(f"wrote {summary['best_yaml']} (the best parameters as an entry of avq/agents/defaults/<agent>.yaml)")
+    return 0 if summary["complete"] else 1
