@@ -45,7 +45,7 @@ MYPY_MODULES = [
     "avq.runs",
     "avq.tilecoding",
 ]
-MYPY_PACKAGES = ["avq.agents.actions", "avq.cli", "avq.envs", "avq.sweep"]
+MYPY_PACKAGES = ["avq.agents.actions", "avq.cli", "avq.envs", "avq.sweep", "avq.tune"]
 
 
 def _run(*args: str) -> None:

@@ -121,7 +121,7 @@ def tune(
         raise ValueError(f"--env is required: {shown(url)} holds no study to continue")
     study_name = study_name or default_name(agent, env)
     before = recorded(store, study_name) or {}
-    given = {
+    given: dict[str, Any] = {
         "agent": agent,
         "env": env,
         "env_kwargs": env_kwargs if env_kwargs is not None else before.get("env_kwargs", {}),

@@ -37,11 +37,6 @@ class Range:
             return trial.suggest_int(self.name, int(self.low or 0), int(self.high or 0), log=self.log)
         return trial.suggest_float(self.name, float(self.low or 0.0), float(self.high or 0.0), log=self.log)
 
-    def as_dict(self) -> dict[str, Any]:
-        if self.kind == "categorical":
-            return {"choices": list(self.choices)}
-        return {"type": self.kind, "low": self.low, "high": self.high, "log": self.log}
-
 
 def _number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
@@ -75,7 +70,9 @@ def _range(name: str, spec: Any, where: str) -> Range:
         if set(spec) - {"choices", "type"}:
             raise bad("give either choices or low and high, not both")
         return Range(name, kind, choices=tuple(choices))
-    low, high, log = spec.get("low"), spec.get("high"), spec.get("log", False)
+    low: Any = spec.get("low")
+    high: Any = spec.get("high")
+    log = spec.get("log", False)
     if not (_number(low) and _number(high)):
         raise bad(f"low and high must be numbers, not {low!r} and {high!r}")
     if kind == "int" and not (float(low).is_integer() and float(high).is_integer()):

@@ -93,18 +93,35 @@ def open_storage(url: str) -> Any:
             return optuna.storages.JournalStorage(JournalFileBackend(str(path)))
         if url.startswith("sqlite:///"):
             Path(url[len("sqlite:///") :]).parent.mkdir(parents=True, exist_ok=True)
-        engine = {"connect_args": {"timeout": 60}} if url.startswith("sqlite") else {}  # (writers wait their turn)
-        return optuna.storages.RDBStorage(
-            url,
-            engine_kwargs=engine,
-            heartbeat_interval=HEARTBEAT_S,
-            grace_period=GRACE_S,
-            **{_stale_keyword(): retry},
-        )
+        return _rdb(url)
     except Exception as exc:  # noqa: BLE001  (a server that does not answer, a file that cannot be written, ...)
         raise ValueError(
             f"cannot open the storage {shown(url)}: {type(exc).__name__}: {str(exc).strip().splitlines()[0]}"
         ) from None
+
+
+def _rdb(url: str, attempts: int = 5) -> Any:
+    """An RDBStorage; a worker that starts beside another may meet its half-made tables and tries again."""
+    import time
+
+    import optuna
+    from sqlalchemy.exc import IntegrityError, OperationalError
+
+    engine = {"connect_args": {"timeout": 60}} if url.startswith("sqlite") else {}  # (writers wait their turn)
+    stale: dict[str, Any] = {_stale_keyword(): retry}
+    for attempt in range(attempts):
+        try:
+            return optuna.storages.RDBStorage(
+                url,
+                engine_kwargs=engine,
+                heartbeat_interval=HEARTBEAT_S,
+                grace_period=GRACE_S,
+                **stale,
+            )
+        except (IntegrityError, OperationalError):
+            if attempt == attempts - 1:
+                raise
+            time.sleep(0.5 * (attempt + 1))
 
 
 def _stale_keyword() -> str:

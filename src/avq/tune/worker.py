@@ -116,12 +116,11 @@ def _objective(trial: Any, spec: dict[str, Any], space: dict[str, Range]) -> flo
             make_agent(spec["agent"], make_env(spec["env"], spec["env_kwargs"]), seed=s, **spec["fixed"], **params)
             for s in spec["seeds"]
         ]
-        unit = "total_episodes" if spec["episodes"] else "total_timesteps"
         for step, size in enumerate(_chunks(spec["episodes"] or spec["timesteps"], spec["evaluations"]), 1):
             means = []
             for agent in agents:
                 before = len(agent.episode_history().get("return", ()))
-                agent.learn(**{unit: size})
+                agent.learn(total_episodes=size) if spec["episodes"] else agent.learn(total_timesteps=size)
                 returns = agent.episode_history().get("return", np.zeros(0))
                 new = returns[before:] if len(returns) > before else returns[-1:]
                 means.append(float(np.mean(new)) if len(new) else np.nan)

@@ -1,0 +1,273 @@
+"""``avq tune``: studies of tiny trials on SQLite, a journal file and a real PostgreSQL server; workers
+sharing one study (no trial lost or run twice), a killed run continued, the best parameters trained, and
+bad input refused with exit 2 and the study intact."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+
+from conftest import cli_in_process
+
+optuna = pytest.importorskip("optuna")
+
+#: A trial of about a second: tiles on MountainCar, 2 seeds x 4 episodes, 2 reports to the pruner.
+TINY = ["--env", "MountainCar-v0", "--agent", "tiles", "--episodes", "4", "--seeds", "2", "--evaluations", "2"]
+
+
+def _study(url: str, name: str = "tiles-MountainCar-v0"):
+    from avq.tune.storage import open_storage
+
+    return optuna.load_study(study_name=name, storage=open_storage(url))
+
+
+def _check_whole(study, at_least: int, at_most: int) -> None:
+    """Trial numbers 0..n-1, each once; as many trials done as asked (workers may start a few at once)."""
+    from avq.tune.worker import counts
+
+    numbers = [t.number for t in study.get_trials(deepcopy=False)]
+    assert sorted(numbers) == list(range(len(numbers)))
+    c = counts(study)
+    assert at_least <= c["done"] <= at_most, c
+    assert c["running"] == 0 and c["waiting"] == 0, c
+    for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,)):
+        assert len(t.user_attrs["seed_values"]) == 2
+        assert len(t.intermediate_values) == 2  # one report to the pruner per evaluation
+
+
+def _tune(*args: str, cwd=None, **popen):
+    return subprocess.Popen(
+        [sys.executable, "-m", "avq.cli", "tune", *args],
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **popen,
+    )
+
+
+def _ran(outputs: list[str]) -> list[int]:
+    """The trials the workers said they finished, from their lines 'trial N STATE: ...'."""
+    return [int(line.split()[1]) for out in outputs for line in out.splitlines() if line.startswith("trial ")]
+
+
+def _two_workers(url: str, cwd, n: int = 6) -> None:
+    procs = [_tune(*TINY, "--storage", url, "--n-trials", str(n), cwd=cwd) for _ in range(2)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    for p, (_, err) in zip(procs, outs):
+        assert p.returncode == 0, err
+    ran = _ran([out for out, _ in outs])
+    assert len(ran) == len(set(ran)), ran  # no trial run twice
+    study = _study(url)
+    _check_whole(study, n, n + 1)
+    assert sorted(ran) == sorted(t.number for t in study.get_trials(deepcopy=False))  # none lost
+    assert {t.user_attrs["worker"].rpartition(":")[2] for t in study.trials} == {str(p.pid) for p in procs}
+
+
+def test_two_processes_share_one_sqlite_study(tmp_path):
+    _two_workers(f"sqlite:///{tmp_path / 'study.db'}", tmp_path)
+
+
+def test_tune_report_export_and_train_from_study(tmp_path):
+    r = cli_in_process("tune", *TINY, "--n-trials", "3", "--out", str(tmp_path / "t"))
+    assert r.returncode == 0, r.stderr
+    assert "rank  trial" in r.stdout and "best.yaml" in r.stdout
+    url = f"sqlite:///{tmp_path / 't' / 'study.db'}"
+    study = _study(url)
+    _check_whole(study, 3, 3)
+    assert study.user_attrs["agent"] == "tiles" and study.user_attrs["env"] == "MountainCar-v0"
+    # the exported entry: the defaults' format, and it makes the agent
+    entry = yaml.safe_load((tmp_path / "t" / "best.yaml").read_text())
+    from avq.agents.registry import make_agent
+
+    (params,) = (e["params"] for e in entry.values())
+    assert {"reason", "results", "params"} <= set(entry["MountainCar-v0"])
+    assert make_agent("tiles", "MountainCar-v0", seed=0, **params).alpha == pytest.approx(
+        study.best_params["alpha"], rel=1e-5
+    )
+    r = cli_in_process("tune", "export", "--storage", url)
+    assert r.returncode == 0 and yaml.safe_load(r.stdout) == entry
+    r = cli_in_process("tune", "report", "--out", str(tmp_path / "t"))
+    assert r.returncode == 0 and "3 complete" in r.stdout
+    # the same command continues the study to more trials
+    r = cli_in_process("tune", "--out", str(tmp_path / "t"), "--n-trials", "4")
+    assert r.returncode == 0, r.stderr
+    _check_whole(_study(url), 4, 4)
+    # train with the best trial's parameters
+    run = tmp_path / "run"
+    r = cli_in_process("train", "--from-study", url, "--out", str(run), "--episodes", "2", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    config = yaml.safe_load((run / "config.yml").read_text())
+    best = _study(url).best_params
+    assert config["env"] == "MountainCar-v0" and config["agent"] == "tiles"
+    assert {k: config["params"][k] for k in best} == pytest.approx(best)
+
+
+def test_a_journal_file_works_too(tmp_path):
+    r = cli_in_process("tune", *TINY, "--n-trials", "2", "--storage", str(tmp_path / "study.log"))
+    assert r.returncode == 0, r.stderr
+    _check_whole(_study(f"journal://{tmp_path / 'study.log'}"), 2, 2)
+
+
+def test_search_spaces_name_their_agents_parameters():
+    from avq.agents.registry import SEARCH
+    from avq.tune.space import agent_space, check_space
+
+    for agent in ("avq", "avq-plan", "avq-sarsa", "tiles", "tabular-ps"):
+        assert SEARCH[agent], agent
+    for agent, raw in SEARCH.items():
+        if raw:
+            check_space(agent_space(agent), agent, "*", {}, agent)
+    assert agent_space("avq-plan")["d_min"].log and agent_space("tiles")["n_tilings"].kind == "categorical"
+
+
+@pytest.mark.parametrize(
+    ("space", "says"),
+    [
+        ({"alpha": {"low": 0.0, "high": 1.0, "log": True}}, "log scale needs low > 0"),
+        ({"alpha": {"low": 1.0, "high": 0.5}}, "low must be below high"),
+        ({"alpha": {"low": 0.1, "hi": 0.5}}, "unknown key 'hi'"),
+        ({"alpha": {"choices": []}}, "non-empty list"),
+    ],
+)
+def test_bad_ranges_are_named(space, says):
+    from avq.tune.space import parse_space
+
+    with pytest.raises(ValueError, match=says):
+        parse_space(space, "here")
+
+
+def test_bad_input_exits_2_and_leaves_the_study(tmp_path, monkeypatch):
+    out = str(tmp_path / "t")
+    url = f"sqlite:///{tmp_path / 't' / 'study.db'}"
+    assert cli_in_process("tune", *TINY, "--n-trials", "1", "--out", out).returncode == 0
+    (tmp_path / "space.yml").write_text("search:\n  alpha: {low: 0.1, high: 1.0}\n  alhpa: {low: 0.1, high: 1.0}\n")
+    cases = {
+        ("--storage", "foo://bar/x"): ["foo://bar/x", "sqlite:///"],
+        ("--storage", "study.sqlite"): ["study.sqlite", "not a storage URL"],
+        ("--agent", "tabular-ps", "--study-name", "tiles-MountainCar-v0"): ["agent 'tiles'", "--study-name"],
+        ("--env", "Acrobot-v1", "--study-name", "tiles-MountainCar-v0"): ["env 'MountainCar-v0'", "--study-name"],
+        ("--episodes", "7"): ["episodes 4", "another objective"],
+        ("--space", str(tmp_path / "space.yml")): ["'alhpa'", "not a parameter of agent 'tiles'"],
+        ("--n-trials", "0"): ["--n-trials", "not 0"],
+    }
+    for given, says in cases.items():
+        args = list(given) if given[0] in ("--agent", "--env") else [*TINY[:4], *given]
+        if "--storage" not in given:
+            args += ["--out", out]
+        r = cli_in_process("tune", *args)
+        assert r.returncode == 2, (given, r.stdout, r.stderr)
+        assert "Traceback" not in r.stderr and all(s in r.stderr for s in says), (given, r.stderr)
+    study = _study(url)
+    _check_whole(study, 1, 1)
+    assert study.user_attrs["agent"] == "tiles" and study.user_attrs["episodes"] == 4
+    assert not (tmp_path / "bar").exists()
+    monkeypatch.setitem(sys.modules, "optuna", None)
+    r = cli_in_process("tune", *TINY, "--out", out)
+    assert r.returncode == 2 and 'pip install "avq[tune]"' in r.stderr
+
+
+@pytest.mark.slow
+def test_a_killed_run_continues(tmp_path):
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    proc = _tune(*TINY, "--episodes", "30", "--storage", url, "--n-trials", "8", cwd=tmp_path)
+    from avq.tune.worker import counts
+
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        time.sleep(0.5)
+        if (tmp_path / "study.db").exists():
+            try:
+                if counts(_study(url))["complete"] >= 2:
+                    break
+            except KeyError:  # (the study is not made yet)
+                continue
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate()
+    before = counts(_study(url))
+    assert 2 <= before["done"] < 8
+    r = subprocess.run(
+        [sys.executable, "-m", "avq.cli", "tune", "--storage", url, "--n-trials", "8"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    assert f"{before['done']} of 8 trials done" in r.stdout
+    study = _study(url)
+    _check_whole(study, 8, 8)
+    lost = [t for t in study.trials if t.state == optuna.trial.TrialState.FAIL and "error" not in t.user_attrs]
+    retried = [t for t in study.trials if "retry_of" in t.user_attrs]
+    assert len(lost) == before["running"] and [t.user_attrs["retry_of"] for t in retried] == [t.number for t in lost]
+    assert all(t.state == optuna.trial.TrialState.COMPLETE for t in retried)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("backend", ["local", "dask"])
+def test_workers_of_a_backend_share_one_study(tmp_path, backend):
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    r = cli_in_process("tune", *TINY, "--storage", url, "--n-trials", "4", "--jobs", "2", "--backend", backend)
+    assert r.returncode == 0, r.stderr
+    _check_whole(_study(url), 4, 5)
+
+
+# -- a real PostgreSQL server ----------------------------------------------------------------------------------
+
+
+def _pg_bin(name: str) -> str | None:
+    import glob
+    import shutil
+
+    found = shutil.which(name) or sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"))
+    return found if isinstance(found, str) else (found[-1] if found else None)
+
+
+@pytest.fixture
+def postgres():
+    """A PostgreSQL server of its own (initdb, pg_ctl start on a free port of 127.0.0.1), and its URL."""
+    import pwd
+    import shutil
+    import socket
+    import tempfile
+
+    pytest.importorskip("psycopg")
+    if _pg_bin("initdb") is None:
+        pytest.skip("PostgreSQL's server binaries are not installed (Debian: apt-get install postgresql)")
+    run_as: list[str] = []
+    if os.geteuid() == 0:  # initdb refuses root: run the server as the package's user
+        run_as = ["runuser", "-u", "postgres", "--"]
+        pwd.getpwnam("postgres")
+    root = tempfile.mkdtemp(prefix="avq-pg-")
+    os.chmod(root, 0o755)
+    if run_as:
+        shutil.chown(root, "postgres")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    data = os.path.join(root, "data")
+
+    def pg(name: str, *args: str) -> None:
+        subprocess.run([*run_as, _pg_bin(name), *args], check=True, capture_output=True, cwd=root)
+
+    pg("initdb", "-D", data, "-A", "trust", "-U", "postgres")
+    opts = f"-p {port} -k {root} -c listen_addresses=127.0.0.1"
+    pg("pg_ctl", "-D", data, "-o", opts, "-l", os.path.join(root, "log"), "-w", "start")
+    try:
+        pg("createdb", "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", "avq")
+        yield f"postgresql://postgres@127.0.0.1:{port}/avq"
+    finally:
+        pg("pg_ctl", "-D", data, "-m", "immediate", "stop")
+        shutil.rmtree(root, ignore_errors=True)
+
+
+@pytest.mark.slow
+def test_two_processes_share_one_postgres_study(tmp_path, postgres):
+    _two_workers(postgres, tmp_path)
+    r = cli_in_process("tune", "report", "--storage", postgres)
+    assert r.returncode == 0 and "complete" in r.stdout
