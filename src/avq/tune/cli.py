@@ -7,6 +7,7 @@ Nothing here imports Optuna until a command runs.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -86,8 +87,7 @@ def _storage(args: argparse.Namespace) -> str:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     """``avq tune``: tune, then print the report; ``report`` and ``export`` read a study."""
-    from avq.cli.commands import key_values
-    from avq.tune import best_entry, report, require_optuna, tune
+    from avq.tune import best_entry, report, require_optuna
 
     require_optuna()
     if args.action != "run":
@@ -100,7 +100,22 @@ def cmd_tune(args: argparse.Namespace) -> int:
             raise ValueError("the study has no complete trial yet; nothing to export")
         print(entry, end="")
         return 0
-    summary = tune(
+    try:
+        summary = _run(args)
+    except KeyboardInterrupt:
+        print("avq: interrupted; the study keeps its trials: the same command continues it", file=sys.stderr)
+        return 130
+    print(report(summary["storage"], summary["study_name"], top=args.top))
+    if summary["best_yaml"]:
+        print(f"wrote {summary['best_yaml']} (the best parameters as an entry of avq/agents/defaults/<agent>.yaml)")
+    return 0 if summary["complete"] else 1
+
+
+def _run(args: argparse.Namespace) -> dict[str, Any]:
+    from avq.cli.commands import key_values
+    from avq.tune import tune
+
+    return tune(
         args.env,
         args.agent,
         storage=args.storage,
@@ -123,7 +138,3 @@ def cmd_tune(args: argparse.Namespace) -> int:
         backend=args.backend,
         address=args.address,
     )
-    print(report(summary["storage"], summary["study_name"], top=args.top))
-    if summary["best_yaml"]:
-        print(f"wrote {summary['best_yaml']} (the best parameters as an entry of avq/agents/defaults/<agent>.yaml)")
-    return 0 if summary["complete"] else 1
