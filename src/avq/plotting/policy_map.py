@@ -181,7 +181,7 @@ def _box_size(agent: BaseAgent) -> int:
 def _check_dim(d: Any, n: int, what: str, names: list[str]) -> int:
     if isinstance(d, bool) or not isinstance(d, (int, np.integer)) or not 0 <= int(d) < n:
         dims = ", ".join(f"{k} ({name})" for k, name in enumerate(names))
-        raise ValueError(f"{what} {d!r} is not a dimension of this task; its dimensions are {dims}")
+        raise ValueError(f"{what}: this task has no dimension {d!r}; its dimensions are {dims}")
     return int(d)
 
 
@@ -247,11 +247,12 @@ def policy_map(
     bounds = parse_bounds(bounds) if isinstance(bounds, str) else dict(bounds or {})
     if len(dims) != 2:
         raise ValueError(f"dims {dims!r}: give exactly two dimensions, e.g. (0, 1)")
-    d0, d1 = (_check_dim(d, n, "dimension", names) for d in dims)
+    d0, d1 = (_check_dim(d, n, "dims", names) for d in dims)
     if d0 == d1:
         raise ValueError(f"dims are both {d0}; give two different dimensions, e.g. {d0},{(d0 + 1) % n}")
-    for d in (*at, *bounds):
-        _check_dim(d, n, "dimension", names)
+    for what, given in (("at", at), ("bounds", bounds)):
+        for d in given:
+            _check_dim(d, n, what, names)
     if project and at:
         raise ValueError("a projection fixes no dimension; give at (--at) for a slice or project (--project)")
     if set(at) & {d0, d1}:
