@@ -41,7 +41,7 @@ MYPY_MODULES = [
     "avq.plotting",
     "avq.plotting.curves",
     "avq.plotting.policy",
-    "avq.plotting.policy_map",
+    "avq.plotting.policy_data",
     "avq.quantizer",
     "avq.reproduce",
     "avq.rules",

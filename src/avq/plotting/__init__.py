@@ -16,7 +16,7 @@ from avq.plotting.curves import (
 )
 from avq.plotting.partition import plot_partition, plot_partitions
 from avq.plotting.policy import plot_model, plot_policy
-from avq.plotting.policy_map import PolicyMap, policy_map
+from avq.plotting.policy_data import PolicyMap, policy_map
 
 __all__ = [
     "plot_partition",

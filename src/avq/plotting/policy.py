@@ -1,6 +1,6 @@
 """The picture of what an agent learned on a task with a ``Box`` observation space: its greedy action over two
 chosen dimensions, its cells' borders and centres (:func:`plot_policy`; the data is
-:func:`avq.plotting.policy_map.policy_map`), and the same for a saved model or run directory
+:func:`avq.plotting.policy_map`), and the same for a saved model or run directory
 (:func:`plot_model`, which ``avq plot`` calls)."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 
 from avq.agents.base import BaseAgent
 from avq.plotting._figure import pyplot, save_figure
-from avq.plotting.policy_map import PolicyMap, policy_map
+from avq.plotting.policy_data import PolicyMap, policy_map
 
 __all__ = ["plot_policy", "plot_model", "policy_figure", "border_segments", "ACTION_COLOURS"]
 
@@ -160,7 +160,7 @@ def plot_policy(
     Each pixel is coloured by the greedy action there (a legend names the actions; a colour bar for
     continuous actions), the borders between cells are drawn where the cells cut the plane, and the cells'
     centres are marked. The other dimensions are sliced (``at``, by default the middle of their range) or,
-    with ``project``, the cells' centres projected: see :func:`avq.plotting.policy_map.policy_map`, whose
+    with ``project``, the cells' centres projected: see :func:`avq.plotting.policy_map`, whose
     arguments these are. The axes are named after the task's dimensions where known (MountainCar,
     CartPole, Acrobot, ...), else ``x0, x1, ...``.
 
@@ -172,7 +172,7 @@ def plot_policy(
     Returns:
         ``path``.
     """
-    from avq.plotting.policy_map import dimension_names
+    from avq.plotting.policy_data import dimension_names
 
     view = policy_map(agent, dims=dims, at=at, project=project, resolution=resolution, bounds=bounds)
     fig = policy_figure(agent, view, title=title, dimension_names=dimension_names(agent))
@@ -193,7 +193,7 @@ def plot_model(
     """:func:`plot_policy` of a saved agent: a run directory of ``avq train`` (its ``model.zip``) or a model
     file of ``agent.save``. ``out`` defaults to ``policy_D0-D1.png`` (``policy_D0-D1_projected.png``) in the
     run directory, or beside the model file with the file's name in front."""
-    from avq.plotting.policy_map import parse_dims
+    from avq.plotting.policy_data import parse_dims
     from avq.runs import load_run
 
     if not os.path.exists(model):

@@ -91,7 +91,7 @@ class PolicyMap:
         centres: ``(k, 2)`` the centres, in the plane, of the cells drawn (those present in a slice; all for a
             projection), or None.
         at: For a slice, the value of every other dimension (dimension -> value); empty for a projection.
-        projected: Whether this is a projection (see the module's docstring).
+        projected: Whether this is a projection (see :func:`policy_map`).
         action_names: The name of each discrete action (empty for continuous actions).
         action_label: What ``actions`` holds, for a legend or colour bar.
     """
@@ -226,7 +226,16 @@ def policy_map(
     resolution: int = 400,
     bounds: Mapping[int, tuple[float, float]] | str | None = None,
 ) -> PolicyMap:
-    """The agent's greedy action and cell at every pixel of the plane of ``dims`` (see the module's docstring).
+    """The agent's greedy action and cell at every pixel of the plane of ``dims``.
+
+    A **slice** (the default) holds the other dimensions at ``at`` (the rest at the middle of their range):
+    every pixel is an observation, its action the agent's ``predict`` and its cell the agent's ``cells`` (the
+    nearest centre in the agent's own metric), so the borders are those of the Voronoi cells where they cut
+    the plane; agents without cells get none. A **projection** (``project``, agents with a codebook)
+    projects the cells' centres onto the plane: a pixel belongs to the nearest projected centre in the
+    agent's metric restricted to the two dimensions, and takes that cell's greedy action (``predict`` at
+    its centre). The range of each dimension is the first found of: ``bounds``, the agent's
+    ``obs_bounds``, the space's finite bounds, the range of the cells' centres (and 5% on each side).
 
     Args:
         agent: A trained agent on a task with a flat ``Box`` observation space.
