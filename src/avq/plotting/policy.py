@@ -13,7 +13,7 @@ import numpy as np
 
 from avq.agents.base import BaseAgent
 from avq.plotting._figure import pyplot, save_figure
-from avq.plotting.policy_data import PolicyMap, policy_map
+from avq.plotting.policy_data import PolicyMap, dimension_names, policy_map
 
 __all__ = ["plot_policy", "plot_model", "policy_figure", "border_segments", "ACTION_COLOURS"]
 
@@ -54,9 +54,7 @@ def _action_colours(n: int, plt) -> list:
     return [plt.get_cmap("cividis")(k / max(n - 1, 1)) for k in range(n)]
 
 
-def policy_figure(
-    agent: BaseAgent, view: PolicyMap, title: str | None = None, dimension_names: list[str] | None = None
-):
+def policy_figure(agent: BaseAgent, view: PolicyMap, title: str | None = None):
     """The figure of :func:`plot_policy` for a computed ``view`` (a Matplotlib ``Figure``; the caller closes it)."""
     plt = pyplot()
     from matplotlib.collections import LineCollection
@@ -96,27 +94,21 @@ def policy_figure(
             handles.append(plt.Line2D([], [], color="k", lw=0.8, label="cell border"))
         if view.centres is not None and len(view.centres):
             ax.plot(view.centres[:, 0], view.centres[:, 1], "o", ms=2.6, color="k", mec="white", mew=0.4, ls="none")
-            which = "(projected)" if view.projected else "of a cell in the slice (projected)" if view.at else ""
-            handles.append(
-                plt.Line2D(
-                    [],
-                    [],
-                    marker="o",
-                    ms=4,
-                    color="k",
-                    mec="white",
-                    ls="none",
-                    label=f"centre {which}" if view.at else f"cell centre {which}".strip(),
-                )
+            label = (
+                "cell centre (projected)"
+                if view.projected
+                else "centre of a cell in the slice (projected)"
+                if view.at
+                else "cell centre"
             )
+            handles.append(plt.Line2D([], [], marker="o", ms=4, color="k", mec="white", ls="none", label=label))
         ax.set_xlim(extent[0], extent[1])
         ax.set_ylim(extent[2], extent[3])
         ax.set_xlabel(view.names[0])
         ax.set_ylabel(view.names[1])
         n_cells = int(agent.n_cells)
         head = title or f"{type(agent).__name__}: {n_cells} {agent.size_unit}, greedy action"
-        names = dict(enumerate(dimension_names)) if dimension_names else None
-        sub = _slice_text(view, names)
+        sub = _slice_text(view, dimension_names(agent))
         ax.set_title(f"{head}\n({sub})" if sub else head)
         if handles:
             ncol = min(3, len(handles))
@@ -137,12 +129,12 @@ def policy_figure(
     return fig
 
 
-def _slice_text(view: PolicyMap, names: dict[int, str] | None) -> str:
+def _slice_text(view: PolicyMap, names: list[str]) -> str:
     if view.projected:
         return "cell centres projected onto the plane; a point takes the action of the nearest projected centre"
     if not view.at:
         return ""
-    return "slice at " + ", ".join(f"{(names or {}).get(d, f'x{d}')} = {v:.3g}" for d, v in view.at.items())
+    return "slice at " + ", ".join(f"{names[d]} = {v:.3g}" for d, v in view.at.items())
 
 
 def plot_policy(
@@ -172,10 +164,8 @@ def plot_policy(
     Returns:
         ``path``.
     """
-    from avq.plotting.policy_data import dimension_names
-
     view = policy_map(agent, dims=dims, at=at, project=project, resolution=resolution, bounds=bounds)
-    fig = policy_figure(agent, view, title=title, dimension_names=dimension_names(agent))
+    fig = policy_figure(agent, view, title=title)
     out = save_figure(fig, path, dpi=300)
     pyplot().close(fig)
     return out
