@@ -369,6 +369,7 @@ def main() -> None:
             xlabel="episode",
             window=WINDOW,
             title=f"{t}: return per episode, {args.seeds} seeds (threshold {THRESHOLDS[t]:g})",
+            higher_is_better=True,
         )
     lines = tables(rows, tasks, agents)
     lines.append("")

@@ -137,7 +137,7 @@ def test_the_cli_page_shows_every_command_and_option(site):
 
     text = _text(site / "reference" / "cli.html")
     parser = build_parser()
-    assert set(parser.commands) == {"reproduce", "train", "sweep", "evaluate", "tune"}
+    assert set(parser.commands) == {"reproduce", "train", "sweep", "evaluate", "tune", "plot"}
     for command, (sub, _) in parser.commands.items():
         assert f"avq {command}" in text, command
         flags = set(re.findall(r"(?<![\w-])--[a-z][a-z-]*", sub.format_help()))

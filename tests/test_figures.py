@@ -162,9 +162,10 @@ def test_few_seeds_are_drawn_one_by_one_and_many_with_an_interval(seeds, bands, 
     from matplotlib.collections import PolyCollection
 
     rng = np.random.default_rng(0)
+    learning = np.linspace(150, 50, 200)  # steps per trial: every seed learns (none is drawn apart)
     curves = {
-        "avq": [rng.normal(50, 10, 200) for _ in range(seeds)],
-        "tabular": [rng.normal(50, 10, 200) for _ in range(seeds)],
+        "avq": [learning + rng.normal(0, 10, 200) for _ in range(seeds)],
+        "tabular": [learning + rng.normal(0, 10, 200) for _ in range(seeds)],
     }
     cells = {"avq": [np.arange(200) // 10 for _ in range(seeds)]}
     fig = learning_curves_figure(curves, cells=cells)

@@ -14,12 +14,12 @@ import numpy as np
 
 from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
 from avq._validate import check_int
-from avq.agents.base import Callback, NotFiniteError
+from avq.agents.base import BaseAgent, Callback, NotFiniteError
 from avq.agents.callbacks import PROGRESS_COLUMNS, CheckpointCallback
 from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.evaluation import evaluate_maze
 
-__all__ = ["train", "resume_train", "evaluate_run", "make_env", "read_run_config"]
+__all__ = ["train", "resume_train", "evaluate_run", "load_run", "make_env", "read_run_config"]
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
@@ -244,6 +244,28 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     return config
 
 
+def load_run(run_dir: str | os.PathLike) -> tuple[BaseAgent, str]:
+    """The trained agent of a run directory of :func:`train` (its ``model.zip``, on the environment its
+    ``config.yml`` names) or of a model file written by ``agent.save`` (on the environment the file records),
+    and its name: the run's agent name, or the file's class."""
+    from avq.agents.base import load
+
+    if Path(run_dir).is_file():
+        try:
+            model = load(run_dir)
+        except ValueError as exc:
+            raise ValueError(
+                f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
+            ) from None
+        return model, type(model).__name__
+    config = read_run_config(run_dir)
+    env = make_env(config["env"], config.get("env_kwargs"))
+    model_path = Path(run_dir) / "model.zip"
+    if not model_path.is_file():
+        raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
+    return load(model_path, env=env), config["agent"]
+
+
 def evaluate_run(
     run_dir: str | os.PathLike,
     episodes: int = 10,
@@ -258,24 +280,10 @@ def evaluate_run(
     the file records), such as those ``avq reproduce`` writes into ``models/``. Episodes are
     cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`; ``capped`` counts them).
     """
-    from avq.agents.base import load
     from avq.evaluation import evaluate_policy
 
-    if Path(run_dir).is_file():
-        try:
-            model = load(run_dir)
-        except ValueError as exc:
-            raise ValueError(
-                f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
-            ) from None
-        env, agent = model.env, type(model).__name__
-    else:
-        config = read_run_config(run_dir)
-        env, agent = make_env(config["env"], config.get("env_kwargs")), config["agent"]
-        model_path = Path(run_dir) / "model.zip"
-        if not model_path.is_file():
-            raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
-        model = load(model_path, env=env)
+    model, agent = load_run(run_dir)
+    env = model.env
     result = evaluate_policy(model, env, n_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress)
     spec = env.spec
     assert spec is not None  # (made from its id: by make_env, or by load from the id the file records)

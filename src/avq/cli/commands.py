@@ -16,7 +16,7 @@ import sys
 
 from avq._io import WriteError
 
-__all__ = ["UsageError", "key_values", "cmd_reproduce", "cmd_train", "cmd_sweep", "cmd_evaluate"]
+__all__ = ["UsageError", "key_values", "cmd_reproduce", "cmd_train", "cmd_sweep", "cmd_evaluate", "cmd_plot"]
 
 
 class UsageError(Exception):
@@ -387,3 +387,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     for r in failed[:5]:
         print(f"  failed: {r['trial']}: {r['error']}", file=sys.stderr)
     return 1 if failed else 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    """``avq plot``: the cells and greedy actions of a run or model file over two dimensions."""
+    from avq.plotting import plot_model
+
+    kwargs = {k: getattr(args, k) for k in ("dims", "at", "project", "bounds", "resolution", "out")}
+    print(f"wrote {plot_model(args.model, **kwargs)}")
+    return 0

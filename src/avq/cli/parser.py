@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from typing import Any, NoReturn
 
-from avq.cli.commands import UsageError, cmd_evaluate, cmd_reproduce, cmd_sweep, cmd_train
+from avq.cli.commands import UsageError, cmd_evaluate, cmd_plot, cmd_reproduce, cmd_sweep, cmd_train
 from avq.tune.cli import add_from_study_options, add_tune_command
 
 __all__ = ["build_parser"]
@@ -194,4 +194,21 @@ def build_parser() -> _Parser:
     ev.add_argument("--json", action="store_true", help="print JSON")
     ev.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     ev.set_defaults(func=cmd_evaluate)
+
+    pl = command(
+        "plot",
+        help="draw a trained agent's cells and greedy actions over two dimensions",
+        description="Draw the greedy action of DIR/model.zip (or a model file) over two dimensions of a Box "
+        "observation space, with the cells' borders and centres: a slice, the other dimensions held at --at "
+        "(default the middle of their range), or with --project the cells' centres projected. The suffix of "
+        "--out picks the format (.png, .pdf, .svg).",
+    )
+    pl.add_argument("model", metavar="DIR|MODEL.zip", help="a directory written by 'avq train', or a model file")
+    pl.add_argument("--dims", default="0,1", help="the two dimensions drawn, across and up (default 0,1)")
+    pl.add_argument("--at", metavar="D=V,...", help="values of other dimensions in the slice, e.g. 2=0.0,3=0.0")
+    pl.add_argument("--project", action="store_true", help="project the cells' centres instead of slicing")
+    pl.add_argument("--bounds", metavar="D=LOW:HIGH,...", help="the range of a dimension, e.g. 1=-3:3")
+    pl.add_argument("--resolution", type=_positive_int("--resolution"), default=400, help="pixels per axis (400)")
+    pl.add_argument("--out", help="file to write (default DIR/policy_D0-D1.png, or beside MODEL.zip)")
+    pl.set_defaults(func=cmd_plot)
     return parser

@@ -99,7 +99,12 @@ def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict
         note = f" (the 10 best of {len(ranked)} configurations by {cfg.metric})"
     # Each configuration is drawn over the episodes all its seeds have.
     plot_learning_curves(
-        curves, path, ylabel="return per episode", xlabel="episode", title=f"{cfg.env}: return per episode{note}"
+        curves,
+        path,
+        ylabel="return per episode",
+        xlabel="episode",
+        title=f"{cfg.env}: return per episode{note}",
+        higher_is_better=True,
     )
     return True
 
