@@ -1,4 +1,4 @@
-"""The ``avq`` command line: ``avq reproduce``, ``avq train``, ``avq sweep`` and ``avq evaluate``.
+"""The ``avq`` command line: ``avq reproduce``, ``train``, ``evaluate``, ``plot``, ``sweep`` and ``tune``.
 
 Every user mistake ends with a one-line message on stderr and exit code 2.
 
