@@ -6,10 +6,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, overload
 
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 __all__ = [
+    "ScaledMetric",
     "check_discrete_actions",
     "check_table_spaces",
     "resolve_bounds",
@@ -315,3 +317,34 @@ def check_table_spaces(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
     if not isinstance(obs_space, (spaces.Discrete, spaces.Box)):
         raise ValueError(f"{agent} needs a Discrete or Box observation space, not {obs_space}")
     return isinstance(obs_space, spaces.Discrete)
+
+
+class ScaledMetric:
+    """The scaled metric of an agent whose cells are vectors in observation units (``AVQSarsa``,
+    ``PlanningAVQ``): its parameters ``scale``, ``scale_factor`` and ``obs_bounds`` resolved once
+    (:func:`scale_setting`), and the count of observations from which ``scale="auto"`` estimates it."""
+
+    env: gym.Env
+    scale: Any
+    scale_warmup: int
+    obs_bounds: list[list[float] | None] | None
+
+    def _resolve_metric(self, scale_factor: float | Sequence[float]) -> None:
+        """After ``BaseAgent.__init__`` (the env is made): the metric's scale in force and ``scale_factor``
+        as a number or a list."""
+        #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
+        self._scale, self._estimated, self._factor = scale_setting(
+            self.env.observation_space, self.scale, self.obs_bounds, scale_factor
+        )
+        self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
+
+    @property
+    def scale_(self) -> np.ndarray:
+        """The metric's scale in force, one number per dimension: ``scale``, or the ``high - low`` of the
+        observation bounds (``obs_bounds`` or the space's), or with ``scale="auto"`` where those are not
+        finite the estimate from the observations so far."""
+        return self._scale.copy()
+
+    def _new_spread(self) -> RunningSpread:
+        """The observations to count for ``scale="auto"`` (none when no dimension is estimated)."""
+        return RunningSpread(len(self._scale), self.scale_warmup if self._estimated.any() else 0)

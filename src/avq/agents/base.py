@@ -76,6 +76,9 @@ class BaseAgent:
     _saved_arrays: ClassVar[tuple[str, ...]] = ()
     #: What ``n_cells`` counts, in messages: cells (states), or actions for the agents that quantize actions.
     size_unit: ClassVar[str] = "cells"
+    #: Attributes that are not pickled, with the value they take in the copy: the compiled entry point of the
+    #: last step (avq._numba.direct_call) cannot be pickled, and the next step finds it again.
+    _transient: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, env: gym.Env | str, seed: int | None) -> None:
         self.env = as_env(env)
@@ -114,6 +117,9 @@ class BaseAgent:
         resolved scale) or ``obs_bounds=None`` (the space's bounds).
         """
         return {name: getattr(self, name) for name in self._param_names()}
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, **self._transient}
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())

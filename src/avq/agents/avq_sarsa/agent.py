@@ -15,12 +15,11 @@ from avq.agents import _maze_loop
 from avq.agents._maze_loop import N_R
 from avq.agents._params import pack_params
 from avq.agents._spaces import (
-    RunningSpread,
+    ScaledMetric,
     check_box_discrete,
     load_scale_state,
     normalize_obs_bounds,
     refresh_scale,
-    scale_setting,
     scale_state,
 )
 from avq.agents.avq_sarsa import episode_end, generic, kernels as core
@@ -32,7 +31,7 @@ from avq.quantizer import Codebook
 __all__ = ["AVQSarsa"]
 
 
-class AVQSarsa(GenericPath):
+class AVQSarsa(ScaledMetric, GenericPath):
     """Sarsa(λ) on the Voronoi cells of a growing and merging codebook.
 
     The agent keeps a codebook of vectors in observation space; the cell of an
@@ -237,22 +236,11 @@ class AVQSarsa(GenericPath):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated, self._factor = scale_setting(
-            self.env.observation_space, scale, self.obs_bounds, scale_factor
-        )
-        self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
+        self._resolve_metric(scale_factor)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete("AVQSarsa", obs_space, act_space, "there is nothing to quantize")
-
-    @property
-    def scale_(self) -> np.ndarray:
-        """The metric's scale in force, one number per dimension: ``scale``, or the ``high - low`` of the
-        observation bounds (``obs_bounds`` or the space's), or with ``scale="auto"`` where those are not
-        finite the estimate from the observations so far."""
-        return self._scale.copy()
 
     def _update_scale(self) -> None:
         """``scale="auto"``: the scale of each dimension without finite bounds becomes ``AUTO_SCALE_STDS``
@@ -305,8 +293,7 @@ class AVQSarsa(GenericPath):
         )
         self._S[core.EPISODES] = self.num_episodes
         self._rec = np.zeros(N_R)
-        #: The observations counted for scale="auto" (none: no dimension is estimated).
-        self._spread = RunningSpread(len(self._scale), self.scale_warmup if self._estimated.any() else 0)
+        self._spread = self._new_spread()
         self._direct: tuple = (None, None, None, None)  # see _advance
 
     def _begin_episode(self, obs: np.ndarray) -> None:

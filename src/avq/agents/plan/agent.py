@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -14,12 +14,11 @@ from avq._validate import check_bool, check_int, check_optional, check_planning_
 from avq.agents import _maze_loop
 from avq.agents._params import pack_params
 from avq.agents._spaces import (
-    RunningSpread,
+    ScaledMetric,
     check_box_discrete,
     load_scale_state,
     normalize_obs_bounds,
     refresh_scale,
-    scale_setting,
     scale_state,
 )
 from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
@@ -44,7 +43,7 @@ from avq.quantizer import Codebook
 __all__ = ["PlanningAVQ"]
 
 
-class PlanningAVQ(BaseAgent):
+class PlanningAVQ(ScaledMetric, BaseAgent):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
 
     It acts as AVQ does: one decision per cell of a growing codebook, repeated until the cell
@@ -116,6 +115,8 @@ class PlanningAVQ(BaseAgent):
         backups_: backups done so far; ``queued_``: cells waiting in the planner's queue.
     """
 
+    _transient: ClassVar[dict[str, Any]] = {"_direct": None}
+
     def __init__(
         self,
         env: gym.Env | str,
@@ -160,21 +161,12 @@ class PlanningAVQ(BaseAgent):
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         super().__init__(env, seed)
-        #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
-        self._scale, self._estimated, self._factor = scale_setting(
-            self.env.observation_space, scale, self.obs_bounds, scale_factor
-        )
-        self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
+        self._resolve_metric(scale_factor)
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = horizon(self.env, self.gamma)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete("PlanningAVQ", obs_space, act_space, "there is nothing to quantize")
-
-    @property
-    def scale_(self) -> np.ndarray:
-        """The metric's scale in force."""
-        return self._scale.copy()
 
     # -- learned state ------------------------------------------------------------------
     @property
@@ -212,12 +204,6 @@ class PlanningAVQ(BaseAgent):
     def queued_(self) -> int:
         return self._model.queued
 
-    def __getstate__(self) -> dict[str, Any]:
-        # The compiled entry point of the last step cannot be pickled; the next step finds it again.
-        state = self.__dict__.copy()
-        state["_direct"] = None
-        return state
-
     def _setup(self) -> None:
         n = self.env.observation_space.shape[0]
         values = dict(
@@ -244,8 +230,7 @@ class PlanningAVQ(BaseAgent):
         )
         #: The largest reward seen (v_opt="auto").
         self._r_max = -np.inf
-        #: The observations counted for scale="auto" (none: no dimension is estimated).
-        self._spread = RunningSpread(n, self.scale_warmup if self._estimated.any() else 0)
+        self._spread = self._new_spread()
         #: The compiled core.step for the argument types of the last step that went through Numba's
         #: dispatcher (see _advance), or None.
         self._direct = None

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -64,6 +64,8 @@ class PrioritizedSweeping(PerStepAgent):
         n_cells: ``k``.
         backups_: backups done so far; ``queued_``: states waiting in the queue (0: converged).
     """
+
+    _transient: ClassVar[dict[str, Any]] = {"_direct": None}
 
     def __init__(
         self,
@@ -135,12 +137,6 @@ class PrioritizedSweeping(PerStepAgent):
     @property
     def queued_(self) -> int:
         return self._model.queued
-
-    def __getstate__(self) -> dict[str, Any]:
-        # The compiled entry point of the last step cannot be pickled; the next step finds it again.
-        state = self.__dict__.copy()
-        state["_direct"] = None
-        return state
 
     def _setup(self) -> None:
         self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
