@@ -10,6 +10,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from avq._validate import check_int
+
 __all__ = [
     "ScaledMetric",
     "check_discrete_actions",
@@ -328,6 +330,12 @@ class ScaledMetric:
     scale: Any
     scale_warmup: int
     obs_bounds: list[list[float] | None] | None
+
+    def _metric_params(self, scale: Any, scale_warmup: int, obs_bounds: Sequence[Any] | None) -> None:
+        """Before ``BaseAgent.__init__``: the metric's parameters stored (``scale`` as given), checked."""
+        self.scale = scale
+        self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
 
     def _resolve_metric(self, scale_factor: float | Sequence[float]) -> None:
         """After ``BaseAgent.__init__`` (the env is made): the metric's scale in force and ``scale_factor``

@@ -18,7 +18,6 @@ from avq.agents._spaces import (
     ScaledMetric,
     check_box_discrete,
     load_scale_state,
-    normalize_obs_bounds,
     refresh_scale,
     scale_state,
 )
@@ -232,9 +231,7 @@ class AVQSarsa(ScaledMetric, GenericPath):
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.max_repeat = check_optional(check_int, "max_repeat", max_repeat, 1)
         self.fused = check_bool("fused", fused)
-        self.scale = scale
-        self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
-        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        self._metric_params(scale, scale_warmup, obs_bounds)
         super().__init__(env, seed)
         self._resolve_metric(scale_factor)
 

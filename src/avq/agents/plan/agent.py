@@ -17,7 +17,6 @@ from avq.agents._spaces import (
     ScaledMetric,
     check_box_discrete,
     load_scale_state,
-    normalize_obs_bounds,
     refresh_scale,
     scale_state,
 )
@@ -157,9 +156,7 @@ class PlanningAVQ(ScaledMetric, BaseAgent):
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.split_after = check_optional(check_int, "split_after", split_after, 1)
         self.fused = check_bool("fused", fused)
-        self.scale = scale
-        self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
-        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        self._metric_params(scale, scale_warmup, obs_bounds)
         super().__init__(env, seed)
         self._resolve_metric(scale_factor)
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
