@@ -37,6 +37,7 @@ __all__ = [
     "plan",
     "maze_arguments",
     "borrowed_maze",
+    "borrowed_grid_maze",
     "drive",
     "maze_start",
     "maze_move",
@@ -131,11 +132,10 @@ def maze_arguments(maze: CompiledMaze) -> Maze:
 
 
 @njit(cache=True, inline="always")
-def borrowed_maze(mz: Maze) -> Maze:
-    """``mz`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for the loop's own use."""
+def _borrowed(mz: Maze, robot: bool) -> Maze:
     # (Numba's annotation of an @intrinsic's call keeps the typing context, which compiled callers do not pass)
     return Maze(
-        mz.robot,
+        robot,
         borrowed(mz.walls),
         mz.gx,
         mz.gy,
@@ -149,6 +149,20 @@ def borrowed_maze(mz: Maze) -> Maze:
         mz.observe_sonar,
         mz.max_episode_steps,
     )  # type: ignore[call-arg]
+
+
+@njit(cache=True, inline="always")
+def borrowed_maze(mz: Maze) -> Maze:
+    """``mz`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for the loop's own use."""
+    return _borrowed(mz, mz.robot)
+
+
+@njit(cache=True, inline="always")
+def borrowed_grid_maze(mz: Maze) -> Maze:
+    """:func:`borrowed_maze` for a loop that runs GridMaze only: ``robot`` is the constant False there, so that
+    the compiler drops RobotMaze's branches (its inlined moves and starts) from the loop, as it did when the
+    maze's fields were separate arguments."""
+    return _borrowed(mz, False)
 
 
 def drive(

@@ -282,6 +282,8 @@ class BaseAgent:
         against the budget and hand each to the callbacks until one returns ``False``. True: stop."""
         if call.episodes_left is not None:
             call.episodes_left -= n
+        if not call.callbacks.callbacks:
+            return False  # (no record built: a compiled loop's chunk may hold thousands of short episodes)
         return any(call.callbacks.on_episode_end(self, record) is False for record in records)
 
     def episode_history(self) -> dict[str, np.ndarray]:

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from avq._numba import borrowed
-from avq.agents._maze_loop import DONE, RECORDS_FULL, borrowed_maze, maze_move, maze_start
+from avq.agents._maze_loop import DONE, RECORDS_FULL, borrowed_grid_maze, maze_move, maze_start
 from avq.agents._td import SarsaParams, clear_traces, epsilon_greedy, table_step
 
 __all__ = ["Table", "run_tabular_grid_maze"]
@@ -61,7 +61,7 @@ def run_tabular_grid_maze(table: Table, sp: SarsaParams, rng, env_rng, mz, pos, 
         borrowed(table.T),
         borrowed(table.TF),
     )
-    mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
+    mz, pos, rec = borrowed_grid_maze(mz), borrowed(pos), borrowed(rec)
     steps = 0
     episodes = 0
     while True:

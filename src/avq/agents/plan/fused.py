@@ -21,6 +21,7 @@ from avq.agents._maze_loop import (
     NEED_CAPACITY,
     RECORDS_FULL,
     Maze,
+    borrowed_grid_maze,
     borrowed_maze,
     maze_move,
     maze_observation,
@@ -143,7 +144,7 @@ def run_ps_grid_maze(
     environment. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the model may not hold a new
     state and a new edge."""
     m, table = borrowed_model(m), _borrowed_table(table)
-    mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
+    mz, pos, rec = borrowed_grid_maze(mz), borrowed(pos), borrowed(rec)
     row_of, keys, T, TF = table.row_of, table.keys, table.T, table.TF  # (written: see the note on ModelArrays)
     steps = 0
     episodes = 0
