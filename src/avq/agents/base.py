@@ -276,6 +276,8 @@ class BaseAgent:
         against the budget and hand each to the callbacks until one returns ``False``. True: stop."""
         if call.episodes_left is not None:
             call.episodes_left -= n
+        if not call.callbacks.callbacks:  # (no callback: no record to build, a fused chunk's thousands of them)
+            return False
         return any(call.callbacks.on_episode_end(self, record) is False for record in records)
 
     def episode_history(self) -> dict[str, np.ndarray]:
