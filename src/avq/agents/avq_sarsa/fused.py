@@ -23,6 +23,8 @@ from avq.agents.avq_sarsa.kernels import (
     IN_EPISODE,
     SIZE,
     Cells,
+    Params,
+    Step,
     begin_episode,
     decide,
     learn,
@@ -58,6 +60,7 @@ def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episo
         borrowed(cells.F),
     )
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
+    par = Params(P, IP, inv_scale)  # (read only: the kernels write the arrays they take one by one)
     cap = V.shape[0]
     scr = np.empty((1, Q.shape[1]))  # bonus values of one cell (count-based exploration)
     steps = 0
@@ -78,7 +81,7 @@ def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episo
                 return steps, episodes, NEED_CAPACITY
             maze_start(env_rng, pos, mz)
             maze_observation(x, pos, mz, sonar)
-            cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
+            cell = begin_episode(V, Q, E, born, act, S, F, par, x)
             S[ACTION] = decide(rng, Q, born, P, cell, scr)
         if steps >= budget_steps:
             return steps, episodes, DONE
@@ -89,9 +92,9 @@ def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episo
         truncated = pos[2] >= mz.max_episode_steps
         maze_observation(x, pos, mz, sonar)
         steps += 1
-        done = terminated or truncated
+        st = Step(x, r, collision, terminated, terminated or truncated)
         if mz.robot:
-            j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r, collision, done)
+            j = observe(V, Q, E, born, S, F, par, st)
         else:
             if cache_geom != S[GEOM]:
                 cell_cache[:, :] = -1
@@ -101,13 +104,11 @@ def run_avq_maze(cells: Cells, rng, env_rng, mz, pos, budget_steps, budget_episo
                 c, d2 = nearest_index(V, S[SIZE], x, inv_scale)
                 cell_cache[iy, ix] = c
                 dist_cache[iy, ix] = np.sqrt(d2)
-            j = observe_at(
-                V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, cell_cache[iy, ix], dist_cache[iy, ix]
-            )
+            j = observe_at(V, Q, E, born, S, F, par, st, cell_cache[iy, ix], dist_cache[iy, ix])
         if j < 0:
             continue
         a_next = a if terminated else decide(rng, Q, born, P, j, scr)
-        learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
-        if done:
+        learn(V, Q, E, born, act, S, F, par, st, j, a_next)
+        if st.done:
             end_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, rec[episodes])
             episodes += 1

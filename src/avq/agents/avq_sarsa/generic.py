@@ -30,6 +30,8 @@ from avq.agents.avq_sarsa.kernels import (
     N_S,
     NOT_FINITE,
     SIZE,
+    Params,
+    Step,
     begin_episode,
     decide,
     learn,
@@ -142,7 +144,7 @@ def generic_start(fb, ib, raw, cursor, obs) -> int:
         x[d] = obs[d]
         if not math.isfinite(x[d]):
             return NOT_FINITE
-    cell = begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x)
+    cell = begin_episode(V, Q, E, born, act, S, F, Params(P, IP, inv_scale), x)
     S[ACTION] = decide((raw, cursor), Q, born, P, cell, scr)
     return S[ACTION]
 
@@ -162,8 +164,8 @@ def generic_step(fb, ib, raw, cursor, obs, r, collision, terminated, truncated) 
         return NEED_DRAWS
     for d in range(x.shape[0]):
         x[d] = obs[d]
-    done = terminated or truncated
-    j = observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, float(r), collision, done)
+    par, st = Params(P, IP, inv_scale), Step(x, float(r), collision, terminated, terminated or truncated)
+    j = observe(V, Q, E, born, S, F, par, st)
     if j == NOT_FINITE:
         return NOT_FINITE
     if j < 0:
@@ -171,8 +173,8 @@ def generic_step(fb, ib, raw, cursor, obs, r, collision, terminated, truncated) 
     a_next = S[ACTION]
     if not terminated:
         a_next = decide((raw, cursor), Q, born, P, j, scr)
-    learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j, a_next, terminated, done)
-    return ENDED if done else a_next
+    learn(V, Q, E, born, act, S, F, par, st, j, a_next)
+    return ENDED if st.done else a_next
 
 
 class GenericPath(BaseAgent):

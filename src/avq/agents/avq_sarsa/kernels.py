@@ -22,7 +22,9 @@ non-zero this episode (``act[0]`` of them), so that an update touches only those
 ``pc`` ``(cap + 1, 2)`` the mutual-nearest pairs of the current geometry
 (``pc[0] = (geometry version, count)``), recomputed only after the codebook
 changed; parameters in ``P`` (float) and ``IP`` (int); the agent's position in
-the episode in ``S`` (int) and ``F`` (float). The parameters' indices are the members of
+the episode in ``S`` (int) and ``F`` (float). The kernels take the arrays they write one by one and
+what they only read as records: :class:`Params` (``P``, ``IP``, ``inv_scale``) and the step, :class:`Step`
+(under Numba 0.68 an inlined kernel that writes through a record argument can lose those writes). The parameters' indices are the members of
 :class:`FloatParam` and :class:`IntParam`, the state's the module constants below. The end of an
 episode (merging, pruning, decay) is in :mod:`avq.agents.avq_sarsa.episode_end`. Skipping rows whose traces are zero and reusing the pairs change
 no result: those rows would be updated by ``0 * step``.
@@ -112,6 +114,26 @@ class Cells(NamedTuple):
     F: np.ndarray
 
 
+class Params(NamedTuple):
+    """What the step's kernels only read of the agent's arrays: the parameters and the metric (one argument
+    instead of three; the arrays they write they take one by one)."""
+
+    P: np.ndarray
+    IP: np.ndarray
+    inv_scale: np.ndarray
+
+
+class Step(NamedTuple):
+    """One primitive step as the kernels read it: it reached observation ``x`` with reward ``r``; whether it
+    hit a wall, whether the episode ended at a terminal state (``terminated``) or at all (``done``)."""
+
+    x: np.ndarray
+    r: float
+    collision: bool
+    terminated: bool
+    done: bool
+
+
 #: The lengths of P and IP.
 N_P, N_IP = len(FloatParam), len(IntParam)
 #: The merge pass's pair rules (``merge_pairs``), in the order of their code in the kernels.
@@ -167,14 +189,14 @@ def bonus_values(Q, born, P, j: int, out) -> None:
 
 
 @njit(cache=True, inline="always")
-def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
+def begin_episode(V, Q, E, born, act, S, F, par: Params, x) -> int:
     """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
     if S[SIZE] == 0:
         # The paper (docs/explanation/paper.md#growing): the codebook starts with the very first observation.
         for d in range(x.shape[0]):
             V[0, d] = x[d]
         for b in range(Q.shape[1]):
-            Q[0, b] = P[FloatParam.Q_INIT]
+            Q[0, b] = par.P[FloatParam.Q_INIT]
             E[0, b] = 0.0
         born[0, 0] = 0
         born[0, 1] = 0
@@ -193,33 +215,36 @@ def begin_episode(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x) -> int:
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
     F[PREV_R] = 0.0
-    cell, _ = nearest_index(V, S[SIZE], x, inv_scale)
+    cell, _ = nearest_index(V, S[SIZE], x, par.inv_scale)
     S[CELL] = cell
     born[cell, 1] = S[EPISODES] + 1
     return cell
 
 
 @njit(cache=True)
-def observe(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, r: float, collision: bool, done: bool) -> int:
-    """Account for one primitive step that reached ``x`` with reward ``r``.
+def observe(V, Q, E, born, S, F, par: Params, st: Step) -> int:
+    """Account for one primitive step ``st`` (that reached ``st.x`` with reward ``st.r``).
 
     Returns -1 while the aggregate transition goes on (same cell, no collision, not
     ``done``, fewer than ``max_repeat`` steps), else the cell ``j`` it ends in, after
     the growth rules of the paper (docs/explanation/paper.md#growing) that act at once (collision; reward jump). Returns ``NOT_FINITE``, changing
     nothing, when ``x`` or ``r`` is NaN or infinite.
     """
-    if not math.isfinite(r):
+    x = st.x
+    if not math.isfinite(st.r):
         return NOT_FINITE
     for d in range(x.shape[0]):
         if not math.isfinite(x[d]):
             return NOT_FINITE
-    j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
-    return observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, np.sqrt(d2))
+    j, d2 = nearest_index(V, S[SIZE], x, par.inv_scale)
+    return observe_at(V, Q, E, born, S, F, par, st, j, np.sqrt(d2))
 
 
 @njit(cache=True, inline="always")
-def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, dist_j) -> int:
-    """:func:`observe` with the nearest vector ``j`` of ``x`` and its distance already known."""
+def observe_at(V, Q, E, born, S, F, par: Params, st: Step, j: int, dist_j: float) -> int:
+    """:func:`observe` with the nearest vector ``j`` of ``st.x`` and its distance already known."""
+    P, IP, inv_scale = par
+    x, r, collision, _, done = st
     i = S[CELL]
     a = S[ACTION]
     S[EP_STEPS] += 1
@@ -264,12 +289,14 @@ def observe_at(V, Q, E, born, S, F, P, IP, inv_scale, x, r, collision, done, j, 
 
 
 @njit(cache=True, inline="always")
-def learn(V, Q, E, born, act, pc, inv_scale, P, IP, S, F, x, j: int, a_next: int, terminated: bool, done: bool) -> int:
+def learn(V, Q, E, born, act, S, F, par: Params, st: Step, j: int, a_next: int) -> int:
     """The paper (docs/explanation/paper.md#learning): the Sarsa(λ) update of the transition ``(S[CELL], S[ACTION]) -> (j, a_next)``.
 
     Then the optional value-change trigger (docs/explanation/paper.md#growing). Moves the agent to the next
     decision and returns its cell.
     """
+    P, IP, inv_scale = par
+    x, terminated, done = st.x, st.terminated, st.done
     i = S[CELL]
     a = S[ACTION]
     born[i, 2 + a] += 1  # one more decision (i, a)
