@@ -12,33 +12,28 @@ from typing import Any, cast
 import gymnasium as gym
 import numpy as np
 
-from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
+from avq._io import ProgressLog, atomic_write_bytes, check_output_dir, file_name_part, hold_directory, make_dirs
 from avq._validate import check_int
 from avq.agents.base import Callback, NotFiniteError
 from avq.agents.callbacks import PROGRESS_COLUMNS, CheckpointCallback
 from avq.agents.registry import AGENTS, agent_class, make_agent
+from avq.envs import as_env, split_env_id
 from avq.evaluation import evaluate_maze
 
 __all__ = ["train", "resume_train", "evaluate_run", "make_env", "read_run_config"]
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
-    """``gymnasium.make`` with errors a user can act on (ValueError naming the id or argument)."""
-    import avq.envs  # noqa: F401  (registers avq's environments)
-
-    kwargs = dict(env_kwargs or {})
-    try:
-        return gym.make(env_id, **kwargs)
-    except gym.error.Error as exc:
-        raise ValueError(f"unknown environment {env_id!r} ({exc})") from None
-    except TypeError as exc:
-        raise ValueError(f"bad env-kwargs for {env_id!r}: {exc}") from None
+    """The environment of ``env_id`` made with ``env_kwargs``: :func:`avq.envs.as_env`, the one place ids are
+    resolved (``module:id`` included; ValueErrors naming the id, the module or the argument)."""
+    return as_env(env_id, **dict(env_kwargs or {}))
 
 
 def default_run_dir(env_id: str, agent: str, seed: int | None) -> Path:
-    """``runs/{env}__{agent}__{seed}__{time}`` (CleanRL's naming)."""
-    env_part = env_id.replace("/", "-")
-    return Path("runs") / f"{env_part}__{agent}__{seed}__{int(time.time())}"
+    """``runs/{env}__{agent}__{seed}__{time}`` (CleanRL's naming), a valid directory name on every system:
+    ``runs/user-Nav3D-v0__avq__0__1763850000`` for ``mymodule:user/Nav3D-v0`` (:func:`avq._io.file_name_part`)."""
+    name = "__".join(file_name_part(str(part)) for part in (split_env_id(env_id)[1], agent, seed, int(time.time())))
+    return Path("runs") / name
 
 
 def train(
@@ -94,6 +89,7 @@ def train(
                 f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
                 f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
             )
+        check_output_dir(out, "avq train")
         agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
         config = {
             "env": env_id,
@@ -255,12 +251,19 @@ def evaluate_run(
 
     ``run_dir`` is a run directory of :func:`train` (its ``model.zip``, on the environment
     its ``config.yml`` names) or a model file written by ``agent.save`` (on the environment
-    the file records), such as those ``avq reproduce`` writes into ``models/``. Episodes are
-    cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`; ``capped`` counts them).
+    the file records), such as those ``avq reproduce`` writes into ``models/``, or a stopped run's
+    ``checkpoint.zip``. Episodes are cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`;
+    ``capped`` counts them). The report names the agent (``agent``: its name in ``avq.make_agent``, or its
+    class for a file that does not record one) and its ``class``.
     """
     from avq.agents.base import load
     from avq.evaluation import evaluate_policy
 
+    if not Path(run_dir).exists():
+        raise ValueError(
+            f"{run_dir}: no such model file or run directory; give a directory written by 'avq train' "
+            "or a model file written by agent.save"
+        )
     if Path(run_dir).is_file():
         try:
             model = load(run_dir)
@@ -268,21 +271,35 @@ def evaluate_run(
             raise ValueError(
                 f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
             ) from None
-        env, agent = model.env, type(model).__name__
+        env = model.env
+        used = model.defaults_used
+        name = used.name if used is not None else type(model).__name__
     else:
         config = read_run_config(run_dir)
-        env, agent = make_env(config["env"], config.get("env_kwargs")), config["agent"]
+        env, name = make_env(config["env"], config.get("env_kwargs")), config["agent"]
         model_path = Path(run_dir) / "model.zip"
         if not model_path.is_file():
-            raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
+            checkpoint = Path(run_dir) / "checkpoint.zip"
+            if checkpoint.is_file():
+                raise ValueError(
+                    f"{run_dir}: no model.zip here: the run stopped before its end, and its last checkpoint can be "
+                    f"evaluated: avq evaluate {checkpoint}; or finish the run first: avq train --resume {run_dir}"
+                )
+            raise ValueError(
+                f"{run_dir}: no model.zip here: the run stopped before its first checkpoint; "
+                f"run it again from the start: avq train --resume {run_dir}"
+            )
         model = load(model_path, env=env)
-    result = evaluate_policy(model, env, n_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress)
+    result = evaluate_policy(
+        model, env, n_eval_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress
+    )
     spec = env.spec
     assert spec is not None  # (made from its id: by make_env, or by load from the id the file records)
     report: dict[str, Any] = {
         "run": str(run_dir),
         "env": spec.id,
-        "agent": agent,
+        "agent": name,
+        "class": type(model).__name__,
         "n_cells": int(model.n_cells),
         "size_unit": model.size_unit,
         **{
