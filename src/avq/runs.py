@@ -75,21 +75,10 @@ def train(
     out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file; give a directory for the run")
+    if not any((out / name).exists() for name in ("model.zip", "checkpoint.zip", "sweep.json", "config.yml")):
+        check_output_dir(out, "avq train")  # (before the lock file, so that a folder of the user's stays untouched)
     with hold_directory(make_dirs(out)):
-        if (out / "model.zip").exists():
-            raise ValueError(f"{out} already holds a trained run; choose another --out")
-        if (out / "checkpoint.zip").exists():
-            raise ValueError(
-                f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out"
-            )
-        if (out / "sweep.json").exists():
-            raise ValueError(f"{out} holds a sweep; choose another --out for the run")
-        if (out / "config.yml").exists():
-            raise ValueError(
-                f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
-                f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
-            )
-        check_output_dir(out, "avq train")
+        _check_new_run_dir(out)  # (again, held: another process may have written since)
         agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
         config = {
             "env": env_id,
@@ -106,6 +95,24 @@ def train(
         if log is not None:
             log(str(model.defaults_used))
         return _run_to_the_end(model, out, config, progress, callback)
+
+
+def _check_new_run_dir(out: Path) -> None:
+    """Refuse an ``out`` that holds a run, a sweep or files of the user's (:func:`avq._io.check_output_dir`)."""
+    if (out / "model.zip").exists():
+        raise ValueError(f"{out} already holds a trained run; choose another --out")
+    if (out / "checkpoint.zip").exists():
+        raise ValueError(
+            f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out"
+        )
+    if (out / "sweep.json").exists():
+        raise ValueError(f"{out} holds a sweep; choose another --out for the run")
+    if (out / "config.yml").exists():
+        raise ValueError(
+            f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
+            f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
+        )
+    check_output_dir(out, "avq train")
 
 
 def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str, Any]:
