@@ -53,7 +53,7 @@ def run_one(task: str, config: str, seed: int, episodes: int) -> dict:
     wall = time.perf_counter() - t0
     hist = model.episode_history()
     returns = np.asarray(hist["return"], float)
-    ev = evaluate_policy(model, gym.make(task), n_episodes=10, seed=10_000 + seed)
+    ev = evaluate_policy(model, gym.make(task), n_eval_episodes=10, seed=10_000 + seed)
     return {
         "task": task,
         "config": config,

@@ -154,15 +154,15 @@ def run_one(task: str, agent: str, seed: int, episodes: int, params: dict | None
     t0 = time.perf_counter()
     if agent == RANDOM:
         policy = RandomPolicy(env.action_space, seed)
-        run = evaluate_policy(policy, env, n_episodes=episodes, seed=seed)
+        run = evaluate_policy(policy, env, n_eval_episodes=episodes, seed=seed)
         wall = time.perf_counter() - t0
-        ev = evaluate_policy(policy, eval_env, n_episodes=EVAL_EPISODES, seed=10_000 + seed)
+        ev = evaluate_policy(policy, eval_env, n_eval_episodes=EVAL_EPISODES, seed=10_000 + seed)
         return summarize(task, agent, seed, episodes, run["returns"], run["steps"], None, wall, ev)
     model = avq.make_agent(agent, env, seed=seed, **{**overrides.get(agent, {}), **(params or {})})
     model.learn(total_episodes=episodes)
     wall = time.perf_counter() - t0
     hist = model.episode_history()
-    ev = evaluate_policy(model, eval_env, n_episodes=EVAL_EPISODES, seed=10_000 + seed)
+    ev = evaluate_policy(model, eval_env, n_eval_episodes=EVAL_EPISODES, seed=10_000 + seed)
     return summarize(task, agent, seed, episodes, hist["return"], hist["steps"], hist["n_cells"], wall, ev)
 
 

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -90,9 +91,20 @@ def cli_in_process(*args: str, cwd=None) -> CliResult:
     return CliResult(code, out.getvalue(), err.getvalue())
 
 
+def avq_path_env() -> dict[str, str]:
+    """This process's environment with the avq it imported first on ``PYTHONPATH`` (absolute), so that a new
+    process runs the same avq whatever its working directory (``PYTHONPATH=src`` is relative)."""
+    import avq
+
+    here = str(Path(avq.__file__).resolve().parents[1])
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)}
+
+
 def cli_subprocess(*args: str, cwd=None) -> CliResult:
     """``python -m avq.cli ARGS`` in a new process (the console entry point, as a user runs it; ~1-2 s each)."""
-    proc = subprocess.run([sys.executable, "-m", "avq.cli", *args], capture_output=True, text=True, cwd=cwd)
+    proc = subprocess.run(
+        [sys.executable, "-m", "avq.cli", *args], capture_output=True, text=True, cwd=cwd, env=avq_path_env()
+    )
     return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
 

@@ -267,9 +267,9 @@ def test_a_corrupt_file_is_a_value_error(tmp_path, arrays, meta):
 def test_learning_improves_the_greedy_return_on_pendulum():
     env = gym.make("Pendulum-v1")
     agent = make_agent("avq-actions", env, seed=0)
-    before = evaluate_policy(agent.learn(total_episodes=0), gym.make("Pendulum-v1"), n_episodes=5, seed=0)
+    before = evaluate_policy(agent.learn(total_episodes=0), gym.make("Pendulum-v1"), n_eval_episodes=5, seed=0)
     agent.learn(total_episodes=60)
-    after = evaluate_policy(agent, gym.make("Pendulum-v1"), n_episodes=5, seed=0)
+    after = evaluate_policy(agent, gym.make("Pendulum-v1"), n_eval_episodes=5, seed=0)
     # Untrained: -1199 (all values equal, so always the first action, -2). After 60 episodes, seeds 0-5
     # gave -455 to -814 (seed 0: -537).
     assert after["mean_return"] > before["mean_return"] + 300.0

@@ -120,7 +120,9 @@ def test_evaluate_reports_the_episodes_cut_by_the_step_cap(cliff_run, capsys):
     assert report["mean_steps"] == 300.0 and report["mean_return"] == -300.0
     assert main(["evaluate", str(cliff_run), "--episodes", "3", "--max-steps", "300"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("tabular on CliffWalking-v1: return -300.00 ± 0.00 over 3 episodes, 300.0 steps")
+    assert lines[0].startswith(
+        "tabular (TabularSarsa) on CliffWalking-v1: return -300.00 ± 0.00 over 3 episodes, 300.0 steps"
+    )
     assert lines[1] == (
         "3 of 3 episodes did not end within --max-steps 300 and were cut there "
         "(their return is that of the first 300 steps)"
@@ -188,7 +190,11 @@ def test_evaluate_takes_a_model_file(reproduced, capsys):
     model = reproduced / "models" / "avq-paper__seed1.zip"
     assert main(["evaluate", str(model), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert report["run"] == str(model) and report["env"] == "avq/GridMaze-v0" and report["agent"] == "AVQSarsa"
+    assert (
+        report["run"] == str(model)
+        and report["env"] == "avq/GridMaze-v0"
+        and (report["agent"], report["class"]) == ("avq-paper", "AVQSarsa")
+    )
     assert report["n_cells"] == summary["agents"]["avq-paper"]["n_cells"][1]
     assert report["maze_success_rate"] == summary["agents"]["avq-paper"]["success_rate"][1]
     # The same numbers as for a run directory holding that model.

@@ -212,7 +212,7 @@ def test_train_refuses_to_overwrite_a_finished_run(tmp_path):
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "0"], "--episodes must be >= 1"),
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "3", "--timesteps", "3"], "not allowed with"),
         (["train", "--config", "missing.yml"], "cannot read config"),
-        (["evaluate", "no-such-dir"], "no such run directory"),
+        (["evaluate", "no-such-dir"], "no-such-dir: no such model file or run directory"),
         (["evaluate", "afile.txt"], "afile.txt: not a readable avq model file"),
         (["train", "--env", "avq/GridMaze-v0", "--episodes", "2", "--out", "afile.txt"], "is a file; give a directory"),
         (["reproduce", "--seeds", "1", "--trials", "2", "--out", "afile.txt"], "is a file; give a directory"),

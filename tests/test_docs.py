@@ -6,7 +6,9 @@
 - the agent-defaults page shows every entry of ``avq.agents.registry.DEFAULTS`` and the command-line
   page every command and option of ``avq.cli.build_parser()``;
 - every public name has a docstring, and no private module has a page;
-- every ```python block of the tutorial runs, in order, in one namespace (the README's: tests/test_readme.py).
+- every ```python block of the tutorial runs, in order, in one namespace (the README's: tests/test_readme.py);
+- the how-to on a user's own task runs as a reader follows it: its module written to a file, its ``avq``
+  commands in new processes, its Python blocks in order.
 """
 
 from __future__ import annotations
@@ -16,15 +18,18 @@ import importlib
 import inspect
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 TUTORIAL = DOCS / "tutorial" / "index.md"
+HOW_TO_OWN_TASK = DOCS / "how-to" / "own-task.md"
 #: The modules of the API reference: their ``__all__`` is the public API.
 PUBLIC_MODULES = (
     "avq",
@@ -174,3 +179,40 @@ def test_the_tutorial_runs(tmp_path, monkeypatch):
     for line, code in blocks:
         exec(compile(code, f"{TUTORIAL.relative_to(ROOT)}:{line}", "exec"), namespace)
     assert (tmp_path / "partition.png").stat().st_size > 0 and (tmp_path / "maze-agent.zip").is_file()
+
+
+def test_the_own_task_how_to_runs(tmp_path, monkeypatch):
+    """The how-to on a user's own task, as a reader follows it in a new directory: a ```python block that
+    starts with ``# NAME.py`` is saved as that file, every ``avq`` line of a ```bash block runs in a new
+    process there, and the other ```python blocks run in order, in one namespace, as a script of that
+    directory (which Python puts on the path)."""
+    import matplotlib
+
+    from conftest import cli_subprocess
+
+    matplotlib.use("Agg")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    text = HOW_TO_OWN_TASK.read_text(encoding="utf-8")
+    namespace = {"__name__": "__how_to__"}
+    ran = []
+    try:
+        for m in re.finditer(r"^```(python|bash)\n(.*?)^```", text, re.M | re.S):
+            where = f"{HOW_TO_OWN_TASK.relative_to(ROOT)}:{text.count(chr(10), 0, m.start()) + 2}"
+            kind, code = m.groups()
+            file = re.match(r"# (\w+\.py)\b", code)
+            if kind == "python" and file:
+                (tmp_path / file.group(1)).write_text(code, encoding="utf-8")
+            elif kind == "python":
+                exec(compile(code, where, "exec"), namespace)
+            else:
+                for command in (shlex.split(line, comments=True) for line in code.splitlines()):
+                    if command[:1] == ["avq"]:
+                        result = cli_subprocess(*command[1:], cwd=tmp_path)
+                        assert result.returncode == 0, (where, command, result.stderr)
+                        ran.append(command[1])
+    finally:
+        sys.modules.pop("nav3d", None)
+        gymnasium.registry.pop("user/Nav3D-v0", None)
+    assert ran.count("train") >= 2 and ran.count("evaluate") >= 2
+    assert (tmp_path / "nav3d-curve.png").stat().st_size > 0 and (tmp_path / "nav3d-agent.zip").is_file()

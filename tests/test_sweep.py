@@ -94,8 +94,9 @@ def test_report_ranks_configurations_with_their_spread(local_run):
     text = report(local_run[0], metric="success_rate")
     lines = text.splitlines()
     assert "ranked by success_rate (higher is better)" in lines[0]
-    body = lines[3:]
+    body, note = lines[3:-1], lines[-1]
     assert len(body) == 4 and all(line.split()[-2:] == ["2", "0"] for line in body)
+    assert note.startswith("* from fewer than 5 seeds")  # (2 seeds each: every interval is marked wide)
     means = [float(line.split()[3]) for line in body]
     assert means == sorted(means, reverse=True)
     table = _table(local_run[0])

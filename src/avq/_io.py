@@ -15,7 +15,42 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "make_dirs", "hold_directory", "ProgressLog", "WriteError"]
+__all__ = [
+    "atomic_write_bytes",
+    "make_dirs",
+    "hold_directory",
+    "check_output_dir",
+    "file_name_part",
+    "ProgressLog",
+    "WriteError",
+]
+
+#: Names Windows refuses for a file, whatever its extension.
+_RESERVED = {"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(1, 10)), *(f"LPT{i}" for i in range(1, 10))}
+
+
+def file_name_part(text: str) -> str:
+    """``text`` as part of a file or directory name valid on every system: each character but letters, digits,
+    ``-``, ``_`` and ``.`` becomes ``-`` (``/`` and ``:`` of an environment id, Windows' ``<>"\\|?*``), with
+    no trailing dot and not a name Windows reserves (``"user/Nav3D-v0"`` -> ``"user-Nav3D-v0"``)."""
+    name = "".join(c if (c.isascii() and c.isalnum()) or c in "-_." else "-" for c in text).rstrip(".") or "-"
+    return f"{name}_" if name.split(".")[0].upper() in _RESERVED else name
+
+
+def check_output_dir(out: Path, command: str, why: str = "") -> None:
+    """The rule of every output directory avq writes (``avq train``'s, ``avq sweep``'s, ``avq reproduce``'s):
+    it is new, empty (but for hidden files), or the caller has recognised it as its own before calling;
+    a directory holding other files is refused (a ``ValueError`` naming it, some of its files and the fix),
+    so that nothing of the user's is mixed with avq's files or lost. ``why`` says what the command does to
+    its directory, where that matters."""
+    if not out.is_dir():
+        return
+    others = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    if others:
+        raise ValueError(
+            f"--out {out} holds files that {command} did not write ({', '.join(others[:3])}"
+            f"{', ...' if len(others) > 3 else ''}){why}; give a new or empty directory"
+        )
 
 
 class WriteError(OSError):
@@ -148,8 +183,8 @@ class ProgressLog:
     """A CSV file with a header and one row per episode, kept in step with an agent's history.
 
     :meth:`sync` appends the rows not yet in the file as complete lines in one
-    write, then flushes them to disk. It first repairs the file: a last line cut
-    short by a crash is dropped, and rows beyond ``len(history)`` (written after
+    write, then flushes them to disk. It first repairs the file: an empty file is
+    written again from ``history``, a last line cut short by a crash is dropped, and rows beyond ``len(history)`` (written after
     the checkpoint being resumed) are removed by an atomic rewrite; a file of an
     avq of before some of the columns is written again from ``history``. So after
     any ``sync`` the file holds exactly one row per episode of ``history``.
@@ -167,6 +202,9 @@ class ProgressLog:
             atomic_write_bytes(self.path, self._header.encode())
             return 0
         data = self.path.read_bytes()
+        if not data.strip():  # (emptied by hand, or by a disk that lost it): its rows are made again from the history
+            atomic_write_bytes(self.path, self._header.encode())
+            return 0
         if not data.startswith(self._header.encode()):
             first = data[: data.find(b"\n")].decode(errors="replace").split(",")
             if first[0] == self.columns[0] and set(first) < set(self.columns):
@@ -174,7 +212,9 @@ class ProgressLog:
                 atomic_write_bytes(self.path, self._header.encode())
                 return 0
             raise ValueError(
-                f"{self.path}: not a progress file written by avq (header {self._header.strip()!r} expected)"
+                f"{self.path}: not a progress file written by avq (header {self._header.strip()!r} expected); "
+                f"move it away (or delete it) and run again: avq writes it anew, one row per episode, from the "
+                "agent's history (a checkpoint holds every episode's)"
             )
         complete = data[: data.rfind(b"\n") + 1]
         if len(complete) != len(data):

@@ -3,7 +3,8 @@
 Every check takes the parameter's name and value, returns the value in the form the
 agent stores (a float, an int, a bool, a list), and raises a ``ValueError`` naming
 the parameter, what it must be and the value given: ``alpha must be in (0.0, 1.0],
-not 1.5``. A bad parameter is a ``ValueError`` everywhere in avq, whatever its type.
+not 1.5`` (an :class:`InvalidParameterError`, public as ``avq.InvalidParameterError``). A bad
+parameter is a ``ValueError`` everywhere in avq, whatever its type.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 __all__ = [
+    "InvalidParameterError",
     "check_range",
     "check_int",
     "check_bool",
@@ -28,12 +30,20 @@ __all__ = [
 T = TypeVar("T")
 
 
-class _Invalid(ValueError):
-    """``{name} must be {expected}, not {value!r}``; :func:`check_optional` extends ``expected``."""
+class InvalidParameterError(ValueError):
+    """A hyper-parameter of the wrong type or out of range: ``alpha must be in (0.0, 1.0], not 1.5``.
+
+    A ``ValueError`` (as scikit-learn's ``InvalidParameterError`` is), with the parameter's ``name``,
+    what it must be (``expected``) and the ``value`` given. Public as ``avq.InvalidParameterError``.
+    """
 
     def __init__(self, name: str, expected: str, value: Any) -> None:
         super().__init__(f"{name} must be {expected}, not {value!r}")
         self.name, self.expected, self.value = name, expected, value
+
+
+# Raised from here, shown where users catch it: ``avq.InvalidParameterError`` in a traceback, not a private module.
+InvalidParameterError.__module__ = "avq"
 
 
 def _is_int(value: Any) -> bool:
@@ -46,26 +56,26 @@ def check_range(
     """``value`` as a float if it is a finite number in the interval (``inf`` only as a closed ``high``)."""
     interval = f"{'(' if low_open else '['}{low}, {high}{')' if high_open else ']'}"
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise _Invalid(name, f"a number in {interval}", value)
+        raise InvalidParameterError(name, f"a number in {interval}", value)
     v = float(value)
     ok = np.isfinite(v) or (v == high and high == np.inf)
     ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
     if not ok:
-        raise _Invalid(name, f"in {interval}", value)
+        raise InvalidParameterError(name, f"in {interval}", value)
     return v
 
 
 def check_int(name: str, value: Any, low: int) -> int:
     """``value`` as an int if it is an integer (not a bool) ``>= low``."""
     if not _is_int(value) or value < low:
-        raise _Invalid(name, f"an integer >= {low}", value)
+        raise InvalidParameterError(name, f"an integer >= {low}", value)
     return int(value)
 
 
 def check_bool(name: str, value: Any) -> bool:
     """``value`` as a bool if it is ``True`` or ``False`` (NumPy's included; not 0 or 1)."""
     if not isinstance(value, (bool, np.bool_)):
-        raise _Invalid(name, "True or False", value)
+        raise InvalidParameterError(name, "True or False", value)
     return bool(value)
 
 
@@ -73,7 +83,7 @@ def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     """``value`` if it is one of ``choices``."""
     if value not in choices:
         listed = " or ".join(map(repr, choices)) if len(choices) == 2 else f"one of {', '.join(map(repr, choices))}"
-        raise _Invalid(name, listed, value)
+        raise InvalidParameterError(name, listed, value)
     return value
 
 
@@ -87,13 +97,13 @@ def check_int_or_ints(name: str, value: Any) -> int | list[int]:
         return int(value)
     if isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0 and all(ok(v) for v in value):
         return [int(v) for v in value]
-    raise _Invalid(name, "an integer >= 1 or a sequence of them (one per dimension)", value)
+    raise InvalidParameterError(name, "an integer >= 1 or a sequence of them (one per dimension)", value)
 
 
 def check_per_dimension(name: str, value: int | list[int], n: int) -> int | list[int]:
     """A value of :func:`check_int_or_ints` once the number of observation dimensions ``n`` is known."""
     if isinstance(value, list) and len(value) != n:
-        raise _Invalid(name, f"an int or {n} ints (one per observation dimension)", value)
+        raise InvalidParameterError(name, f"an int or {n} ints (one per observation dimension)", value)
     return value
 
 
@@ -103,8 +113,8 @@ def check_optional(check: Callable[..., T], name: str, value: Any, *args: Any, *
         return None
     try:
         return check(name, value, *args, **kwargs)
-    except _Invalid as exc:
-        raise _Invalid(exc.name, f"{exc.expected} or None", exc.value) from None
+    except InvalidParameterError as exc:
+        raise InvalidParameterError(exc.name, f"{exc.expected} or None", exc.value) from None
 
 
 def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: Any, q_init: Any, traces: Any) -> None:
@@ -137,10 +147,10 @@ def check_planning_params(
     else:
         try:
             agent.v_opt = check_range("v_opt", v_opt, -np.inf, np.inf, low_open=True, high_open=True)
-        except _Invalid as exc:
+        except InvalidParameterError as exc:
             if not auto_v_opt:
                 raise
-            raise _Invalid(exc.name, f"{exc.expected} or 'auto'", exc.value) from None
+            raise InvalidParameterError(exc.name, f"{exc.expected} or 'auto'", exc.value) from None
     agent.v_min = check_range("v_min", v_min, -np.inf, np.inf, low_open=True, high_open=True)
     if agent.v_opt != "auto" and agent.v_min > agent.v_opt:
         raise ValueError(

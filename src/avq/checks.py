@@ -49,9 +49,9 @@ class _Case:
         )
 
     def env(self) -> gym.Env:
-        import avq.envs  # noqa: F401  (registers avq's environments)
+        from avq.envs import as_env
 
-        return gym.make(self.env_id, **self.env_kwargs)
+        return as_env(self.env_id, **self.env_kwargs)
 
     def make(self, seed: int = 0, **extra: Any) -> BaseAgent:
         params = {**self.params, **extra}

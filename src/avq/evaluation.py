@@ -195,14 +195,17 @@ def success_rule(env: gym.Env) -> str | None:
 def evaluate_policy(
     agent: BaseAgent,
     env: gym.Env,
-    n_episodes: int = 10,
-    seed: int | None = 0,
+    n_eval_episodes: int = 10,
     deterministic: bool = True,
+    *,
+    seed: int | None = 0,
     max_steps: int = 100_000,
     progress_bar: bool = False,
 ) -> dict[str, Any]:
-    """Run ``n_episodes`` with the agent's policy and summarize the returns.
+    """Run ``n_eval_episodes`` with the agent's policy and summarize the returns.
 
+    Called as Stable-Baselines3's ``evaluate_policy(model, env, n_eval_episodes, deterministic)``,
+    but it returns a dict (``mean_return`` and ``std_return`` are SB3's pair, with more beside them).
     The environment is reset with ``seed`` once, so the same seed gives the same
     start states. ``success`` is reported where the task defines it (reaching the
     goal; for CartPole, lasting until the time limit; or ``info["is_success"]``).
@@ -212,16 +215,21 @@ def evaluate_policy(
     time limit, for instance).
 
     Args:
+        agent: A trained agent (or anything with ``predict(obs, deterministic)``).
+        env: An environment like the one it was trained on (one not being trained on).
+        n_eval_episodes: Episodes to run.
+        deterministic: The greedy policy (True) or the exploring one.
+        seed: Seed of the first reset (None: fresh entropy).
+        max_steps: Steps after which an episode is cut.
         progress_bar: Show a tqdm progress bar of the episodes (drawn after a second;
             its count of steps moves within a long episode).
 
     Returns:
-        ``mean_return``, ``std_return``, ``mean_steps``, ``success_rate`` (or None),
+        ``episodes``, ``mean_return``, ``std_return``, ``mean_steps``, ``success_rate`` (or None),
         ``capped`` (the episodes cut at ``max_steps``), ``max_steps``, and the
         per-episode ``returns`` and ``steps``.
     """
-    if int(n_episodes) < 1:
-        raise ValueError(f"n_episodes must be >= 1, not {n_episodes}")
+    n_episodes = check_int("n_eval_episodes", n_eval_episodes, 1)
     check_int("max_steps", max_steps, 1)
     rule = success_rule(env)
     returns, lengths, successes = [], [], []
@@ -230,9 +238,9 @@ def evaluate_policy(
     if progress_bar:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=int(n_episodes), unit="episode", desc="evaluate", delay=1.0, smoothing=0)
+        bar = tqdm(total=n_episodes, unit="episode", desc="evaluate", delay=1.0, smoothing=0)
     obs, _ = env.reset(seed=seed)
-    for ep in range(int(n_episodes)):
+    for ep in range(n_episodes):
         if ep:
             obs, _ = env.reset()
         total, steps, ok = 0.0, 0, None
@@ -264,7 +272,7 @@ def evaluate_policy(
         bar.close()
     rate = None if any(s is None for s in successes) else float(np.mean(cast(list[bool], successes)))
     return {
-        "episodes": int(n_episodes),
+        "episodes": n_episodes,
         "mean_return": float(np.mean(returns)),
         "std_return": float(np.std(returns)),
         "mean_steps": float(np.mean(lengths)),

@@ -16,7 +16,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from avq._io import atomic_write_bytes, hold_directory, make_dirs
+from avq._io import atomic_write_bytes, check_output_dir, hold_directory, make_dirs
 from avq.agents.base import BaseAgent, Callback
 from avq.agents.registry import AGENTS, agent_class, make_agent
 from avq.envs.layouts import Layout, LayoutSpec, load_layout
@@ -196,13 +196,7 @@ def _check_replaceable(out: Path) -> None:
         earlier = None
     if isinstance(earlier, dict) and {"agents", "trials"} <= set(earlier):
         return
-    others = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
-    if others:
-        raise ValueError(
-            f"--out {out} holds files that avq reproduce did not write ({', '.join(others[:3])}"
-            f"{', ...' if len(others) > 3 else ''}); the reproduction replaces its directory as a "
-            "whole, so give a new or empty directory"
-        )
+    check_output_dir(out, "avq reproduce", why="; the reproduction replaces its directory as a whole")
 
 
 @contextmanager
@@ -298,7 +292,7 @@ def _run_and_write(
             "success_rate": [r.success_rate for r in runs],
             "path_ratio": [r.path_ratio for r in runs],
             "env_steps": [r.env_steps for r in runs],
-            "wall_s": [round(r.wall_s, 3) for r in runs],
+            "wall_s": [round(r.wall_s, 6) for r in runs],  # (a compiled run of a small maze takes milliseconds)
         }
     atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
 
@@ -367,6 +361,11 @@ def _kernels_cached() -> bool:
     return cache_dir.is_dir() and any(cache_dir.rglob("fused.run_*.nbi"))
 
 
+def _seconds(s: float) -> str:
+    """Seconds to three significant figures, however small (``0.00412``), whole from 100 s on (``1234``)."""
+    return f"{s:.0f}" if s >= 100 else f"{s:.3g}"
+
+
 def format_table(summary: dict[str, Any]) -> str:
     """The reproduction's table: one row per agent, spread over seeds."""
     head = f"{'agent':<12} {'cells med [min-max]':>20} {'success mean [min-max]':>24} {'path ratio':>11} {'env steps':>10} {'seconds':>8}"
@@ -384,7 +383,7 @@ def format_table(summary: dict[str, Any]) -> str:
         lines.append(
             f"{name:<12} {f'{np.median(cells):.0f} [{cells.min()}-{cells.max()}]':>20} "
             f"{f'{succ.mean():.0%} [{succ.min():.0%}-{succ.max():.0%}]':>24} {ratio:>11} "
-            f"{np.mean(res['env_steps']):>10.0f} {np.mean(res['wall_s']):>8.2f}"
+            f"{np.mean(res['env_steps']):>10.0f} {_seconds(float(np.mean(res['wall_s']))):>8}"
         )
     lines.append(
         "success: greedy policy from every start; path ratio: greedy over shortest steps; "

@@ -12,33 +12,28 @@ from typing import Any, cast
 import gymnasium as gym
 import numpy as np
 
-from avq._io import ProgressLog, atomic_write_bytes, hold_directory, make_dirs
+from avq._io import ProgressLog, atomic_write_bytes, check_output_dir, file_name_part, hold_directory, make_dirs
 from avq._validate import check_int
 from avq.agents.base import BaseAgent, Callback, NotFiniteError
 from avq.agents.callbacks import PROGRESS_COLUMNS, CheckpointCallback
 from avq.agents.registry import AGENTS, agent_class, make_agent
+from avq.envs import as_env, split_env_id
 from avq.evaluation import evaluate_maze
 
 __all__ = ["train", "resume_train", "evaluate_run", "load_run", "make_env", "read_run_config"]
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
-    """``gymnasium.make`` with errors a user can act on (ValueError naming the id or argument)."""
-    import avq.envs  # noqa: F401  (registers avq's environments)
-
-    kwargs = dict(env_kwargs or {})
-    try:
-        return gym.make(env_id, **kwargs)
-    except gym.error.Error as exc:
-        raise ValueError(f"unknown environment {env_id!r} ({exc})") from None
-    except TypeError as exc:
-        raise ValueError(f"bad env-kwargs for {env_id!r}: {exc}") from None
+    """The environment of ``env_id`` made with ``env_kwargs``: :func:`avq.envs.as_env`, the one place ids are
+    resolved (``module:id`` included; ValueErrors naming the id, the module or the argument)."""
+    return as_env(env_id, **dict(env_kwargs or {}))
 
 
 def default_run_dir(env_id: str, agent: str, seed: int | None) -> Path:
-    """``runs/{env}__{agent}__{seed}__{time}`` (CleanRL's naming)."""
-    env_part = env_id.replace("/", "-")
-    return Path("runs") / f"{env_part}__{agent}__{seed}__{int(time.time())}"
+    """``runs/{env}__{agent}__{seed}__{time}`` (CleanRL's naming), a valid directory name on every system:
+    ``runs/user-Nav3D-v0__avq__0__1763850000`` for ``mymodule:user/Nav3D-v0`` (:func:`avq._io.file_name_part`)."""
+    name = "__".join(file_name_part(str(part)) for part in (split_env_id(env_id)[1], agent, seed, int(time.time())))
+    return Path("runs") / name
 
 
 def train(
@@ -80,20 +75,10 @@ def train(
     out = Path(out) if out is not None else default_run_dir(env_id, agent, seed)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file; give a directory for the run")
+    if not any((out / name).exists() for name in ("model.zip", "checkpoint.zip", "sweep.json", "config.yml")):
+        check_output_dir(out, "avq train")  # (before the lock file, so that a folder of the user's stays untouched)
     with hold_directory(make_dirs(out)):
-        if (out / "model.zip").exists():
-            raise ValueError(f"{out} already holds a trained run; choose another --out")
-        if (out / "checkpoint.zip").exists():
-            raise ValueError(
-                f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out"
-            )
-        if (out / "sweep.json").exists():
-            raise ValueError(f"{out} holds a sweep; choose another --out for the run")
-        if (out / "config.yml").exists():
-            raise ValueError(
-                f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
-                f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
-            )
+        _check_new_run_dir(out)  # (again, held: another process may have written since)
         agent_params = {k: v for k, v in model.get_params().items() if k != "seed"}
         config = {
             "env": env_id,
@@ -110,6 +95,24 @@ def train(
         if log is not None:
             log(str(model.defaults_used))
         return _run_to_the_end(model, out, config, progress, callback)
+
+
+def _check_new_run_dir(out: Path) -> None:
+    """Refuse an ``out`` that holds a run, a sweep or files of the user's (:func:`avq._io.check_output_dir`)."""
+    if (out / "model.zip").exists():
+        raise ValueError(f"{out} already holds a trained run; choose another --out")
+    if (out / "checkpoint.zip").exists():
+        raise ValueError(
+            f"{out} holds a stopped run; continue it with 'avq train --resume {out}', or choose another --out"
+        )
+    if (out / "sweep.json").exists():
+        raise ValueError(f"{out} holds a sweep; choose another --out for the run")
+    if (out / "config.yml").exists():
+        raise ValueError(
+            f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
+            f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
+        )
+    check_output_dir(out, "avq train")
 
 
 def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str, Any]:
@@ -247,9 +250,15 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
 def load_run(run_dir: str | os.PathLike) -> tuple[BaseAgent, str]:
     """The trained agent of a run directory of :func:`train` (its ``model.zip``, on the environment its
     ``config.yml`` names) or of a model file written by ``agent.save`` (on the environment the file records),
-    and its name: the run's agent name, or the file's class."""
+    such as a stopped run's ``checkpoint.zip``, and its name: the run's agent name, or the one the file
+    records (its class for a file that records none)."""
     from avq.agents.base import load
 
+    if not Path(run_dir).exists():
+        raise ValueError(
+            f"{run_dir}: no such model file or run directory; give a directory written by 'avq train' "
+            "or a model file written by agent.save"
+        )
     if Path(run_dir).is_file():
         try:
             model = load(run_dir)
@@ -257,12 +266,22 @@ def load_run(run_dir: str | os.PathLike) -> tuple[BaseAgent, str]:
             raise ValueError(
                 f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
             ) from None
-        return model, type(model).__name__
+        used = model.defaults_used
+        return model, used.name if used is not None else type(model).__name__
     config = read_run_config(run_dir)
     env = make_env(config["env"], config.get("env_kwargs"))
     model_path = Path(run_dir) / "model.zip"
     if not model_path.is_file():
-        raise ValueError(f"{run_dir}: no model.zip here; the run did not finish")
+        checkpoint = Path(run_dir) / "checkpoint.zip"
+        if checkpoint.is_file():
+            raise ValueError(
+                f"{run_dir}: no model.zip here: the run stopped before its end, and its last checkpoint can be "
+                f"evaluated: avq evaluate {checkpoint}; or finish the run first: avq train --resume {run_dir}"
+            )
+        raise ValueError(
+            f"{run_dir}: no model.zip here: the run stopped before its first checkpoint; "
+            f"run it again from the start: avq train --resume {run_dir}"
+        )
     return load(model_path, env=env), config["agent"]
 
 
@@ -277,20 +296,25 @@ def evaluate_run(
 
     ``run_dir`` is a run directory of :func:`train` (its ``model.zip``, on the environment
     its ``config.yml`` names) or a model file written by ``agent.save`` (on the environment
-    the file records), such as those ``avq reproduce`` writes into ``models/``. Episodes are
-    cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`; ``capped`` counts them).
+    the file records), such as those ``avq reproduce`` writes into ``models/``, or a stopped run's
+    ``checkpoint.zip``. Episodes are cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`;
+    ``capped`` counts them). The report names the agent (``agent``: its name in ``avq.make_agent``, or its
+    class for a file that does not record one) and its ``class``.
     """
     from avq.evaluation import evaluate_policy
 
-    model, agent = load_run(run_dir)
+    model, name = load_run(run_dir)
     env = model.env
-    result = evaluate_policy(model, env, n_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress)
+    result = evaluate_policy(
+        model, env, n_eval_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress
+    )
     spec = env.spec
     assert spec is not None  # (made from its id: by make_env, or by load from the id the file records)
     report: dict[str, Any] = {
         "run": str(run_dir),
         "env": spec.id,
-        "agent": agent,
+        "agent": name,
+        "class": type(model).__name__,
         "n_cells": int(model.n_cells),
         "size_unit": model.size_unit,
         **{

@@ -4,6 +4,7 @@ The agents by name, with their rules and defaults: `avq.agents.registry`. The mo
 `avq.agents.BaseAgent.save` writes: `avq.agents.save_util`.
 """
 
+from avq._validate import InvalidParameterError
 from avq.agents import registry, save_util  # noqa: F401  (public: the names and defaults, the model file)
 from avq.agents.actions.agent import ActionCodebookSarsa
 from avq.agents.avq_sarsa.agent import AVQSarsa
@@ -26,6 +27,7 @@ __all__ = [
     "ActionCodebookSarsa",
     "BaseAgent",
     "NotFiniteError",
+    "InvalidParameterError",
     "AGENTS",
     "make_agent",
     "load",

@@ -74,7 +74,8 @@ class BaseAgent:
 
     #: Registry of learned arrays saved by :meth:`save` (name -> attribute).
     _saved_arrays: ClassVar[tuple[str, ...]] = ()
-    #: What ``n_cells`` counts, in messages: cells (states), or actions for the agents that quantize actions.
+    #: What ``n_cells`` counts, in messages: cells (states), tiles for tile coding, or actions for the agents
+    #: that quantize actions.
     size_unit: ClassVar[str] = "cells"
     #: Attributes that are not pickled, with the value they take in the copy: the compiled entry point of the
     #: last step (avq._numba.direct_call) cannot be pickled, and the next step finds it again.
@@ -393,9 +394,10 @@ class BaseAgent:
     def save(self, path: str | os.PathLike) -> Path:
         """Save parameters (JSON) and learned arrays (``.npz``) in one zip file.
 
-        Nothing is pickled. The file is written atomically. Returns the path written
-        (``.zip`` is appended when the path has no suffix). The format is described
-        in :mod:`avq.agents.save_util`.
+        Nothing is pickled. The file is written atomically, into a directory that must exist
+        (a ``FileNotFoundError`` names it otherwise). Returns the path written (``.zip`` is
+        appended when the path has no suffix). The format is described in
+        :mod:`avq.agents.save_util`.
         """
 
         return save_util.save(self, path)

@@ -30,6 +30,7 @@ from avq.agents.base import BaseAgent
 from avq.agents.baselines import GridSarsa, TabularSarsa, TileSarsa
 from avq.agents.plan import PlanningAVQ, PrioritizedSweeping
 from avq.agents.plan.model import PLANNING_PARAMS
+from avq.envs import split_env_id
 
 __all__ = [
     "AGENTS",
@@ -177,7 +178,7 @@ def _env_id(env: gym.Env | str) -> str | None:
     """The registered id of ``env``: its ``spec``, or for an environment built without ``gymnasium.make``
     the id registered for its class."""
     if isinstance(env, str):
-        return env
+        return split_env_id(env)[1]  # (without the module of Gymnasium's "module:id" form)
     if not isinstance(env, gym.Env):
         return None  # the agent's constructor says what it needs
     spec = getattr(env, "spec", None)

@@ -10,7 +10,8 @@ A model file is a zip of two members, written atomically and never pickled:
 
 Kept apart from the agents (as Stable-Baselines3 keeps ``common/save_util.py``). It
 imports no agent: `avq.agents.BaseAgent.load` hands it the classes a file may name (itself and
-its subclasses); `avq.agents.BaseAgent.save` and `avq.load` call it.
+its subclasses); `avq.agents.BaseAgent.save` and `avq.load` call it. (Loading a file that records
+the agent's ``defaults_used`` imports the registry's ``DefaultsUsed`` then.)
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from gymnasium import spaces
 
 from avq._io import atomic_write_bytes
 from avq._version import __version__
-from avq.envs import as_env
+from avq.envs import as_env, recorded_env_id
 
 if TYPE_CHECKING:
     from avq.agents.base import BaseAgent
@@ -87,13 +88,14 @@ def env_signature(env: gym.Env) -> dict[str, Any]:
 
     Returns:
         ``observation_space`` and ``action_space`` (each a dict: type, shape, bounds), ``env_id``
-        (None when ``env`` was not made by ``gymnasium.make``) and ``env_make`` (the ``gymnasium.make``
+        (None when ``env`` was not made by ``gymnasium.make``; ``module:id`` when it was made from that form,
+        so that loading imports the module again) and ``env_make`` (the ``gymnasium.make``
         arguments that rebuild it, or None).
     """
     return {
         "observation_space": _space_to_json(env.observation_space),
         "action_space": _space_to_json(env.action_space),
-        "env_id": getattr(getattr(env, "spec", None), "id", None),
+        "env_id": recorded_env_id(env.spec.id) if env.spec is not None else None,
         "env_make": _env_make_args(env),
     }
 
@@ -131,13 +133,23 @@ def check_env_fits(trained: dict[str, Any], env: gym.Env, subject: str) -> None:
 
 
 def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
-    """Write ``agent`` to a model file at ``path`` (``.zip`` appended when it has no suffix); return the path."""
+    """Write ``agent`` to a model file at ``path`` (``.zip`` appended when it has no suffix); return the path.
+
+    The directory must exist, as for ``numpy.save`` and Stable-Baselines3: a ``FileNotFoundError`` names it
+    otherwise (a mistyped path does not make directories)."""
     path = Path(path)
     if path.is_dir() or not path.name:
         raise ValueError(f"{path} is a directory; give a file name such as {path / 'model.zip'}")
     if path.suffix == "":
         path = path.with_suffix(".zip")
+    existing = next(p for p in path.absolute().parents if os.path.exists(p))
+    if existing != path.absolute().parent and os.path.isdir(existing):  # (under a file: the write says so)
+        raise FileNotFoundError(
+            f"cannot save to {path}: the directory {path.parent} does not exist; create it first "
+            f"(os.makedirs({str(path.parent)!r})) or give a path in an existing directory"
+        )
     state, arrays = agent._state_dict()
+    used = agent.defaults_used
     meta = {
         "format": "avq-agent",
         "format_version": FORMAT_VERSION,
@@ -145,6 +157,8 @@ def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
         "class": type(agent).__name__,
         "params": agent.get_params(),
         **env_signature(agent.env),
+        # (which defaults avq.make_agent gave it: the agent's name, for avq evaluate; None when built directly)
+        "defaults_used": None if used is None else json.loads(json.dumps(used._asdict(), default=_plain_json)),
         "state": state,
     }
     buf = io.BytesIO()
@@ -156,6 +170,11 @@ def save(agent: BaseAgent, path: str | os.PathLike) -> Path:
         zf.writestr("arrays.npz", buf.getvalue())
     atomic_write_bytes(path, out.getvalue())
     return path
+
+
+def _plain_json(value: Any) -> Any:
+    """A value JSON cannot hold as it is: an array's list, else its repr."""
+    return value.tolist() if hasattr(value, "tolist") else repr(value)
 
 
 def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -250,4 +269,9 @@ def load(
         agent._load_state_dict(meta["state"], arrays)
     except (KeyError, ValueError, IndexError, TypeError, AttributeError) as exc:
         raise ValueError(f"{path}: the model's state is incomplete or inconsistent ({exc})") from None
+    used = meta.get("defaults_used")
+    if isinstance(used, dict) and set(used) == {"name", "env_id", "key", "explicit"}:
+        from avq.agents.registry import DefaultsUsed  # (the registry imports the agents, which import this)
+
+        agent.defaults_used = DefaultsUsed(**used)
     return agent

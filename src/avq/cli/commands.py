@@ -135,13 +135,16 @@ def _load_config(path: str) -> dict:
     return config
 
 
+def _size(n: int, unit: str) -> str:
+    """``"12 cells"``, ``"1 cell"`` (``unit``: an agent's ``size_unit``, a plural)."""
+    return f"{n} {unit[:-1] if n == 1 and unit.endswith('s') else unit}"
+
+
 def _print_train_summary(summary: dict) -> None:
     ret = summary["final_return_mean"]
-    unit = summary.get("size_unit", "cells")
-    unit = unit[:-1] if summary["n_cells"] == 1 and unit.endswith("s") else unit  # (1 cell)
     print(
         f"{summary['agent']} on {summary['env']} (seed {summary['seed']}): {summary['episodes']} episodes, "
-        f"{summary['env_steps']} env steps, {summary['n_cells']} {unit}, "
+        f"{summary['env_steps']} env steps, {_size(summary['n_cells'], summary.get('size_unit', 'cells'))}, "
         f"mean return of the last 10% "
         f"{'-' if ret is None else f'{ret:.2f}'}, {summary['wall_s']:.1f} s -> {summary['out']}"
     )
@@ -304,10 +307,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
+    agent = report["agent"] if report["agent"] == report["class"] else f"{report['agent']} ({report['class']})"
     line = (
-        f"{report['agent']} on {report['env']}: return {report['mean_return']:.2f} ± {report['std_return']:.2f} "
+        f"{agent} on {report['env']}: return {report['mean_return']:.2f} ± {report['std_return']:.2f} "
         f"over {report['episodes']} episodes, {report['mean_steps']:.1f} steps, "
-        f"{report['n_cells']} {report.get('size_unit', 'cells')}"
+        f"{_size(report['n_cells'], report['size_unit'])}"
     )
     if report["success_rate"] is not None:
         line += f", success {report['success_rate']:.0%}"

@@ -105,7 +105,11 @@ def build_parser() -> _Parser:
         "into --out. A stopped run continues exactly with --resume DIR. Another avq process writing into --out "
         "makes it refuse.",
     )
-    tr.add_argument("--env", help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0")
+    tr.add_argument(
+        "--env",
+        help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0, or MODULE:ID for an environment "
+        "that a module of yours registers when imported (imported from the working directory, as python -m does)",
+    )
     from avq.agents.registry import AGENTS
 
     tr.add_argument("--agent", help=f"agent name (default avq): {', '.join(AGENTS)}")
@@ -178,7 +182,7 @@ def build_parser() -> _Parser:
         "run_dir",
         metavar="DIR|MODEL.zip",
         help="a directory written by 'avq train', or a model file written by agent.save "
-        "(such as avq reproduce's models/NAME__seedS.zip)",
+        "(such as avq reproduce's models/NAME__seedS.zip, or a stopped run's DIR/checkpoint.zip)",
     )
     ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
     ev.add_argument(

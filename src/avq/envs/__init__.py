@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import importlib
+import os
+import sys
+import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from typing import Any
 
 import gymnasium as gym
@@ -20,7 +26,9 @@ __all__ = [
     "parse_layout",
     "random_layout",
     "refine_layout",
+    "recorded_env_id",
     "register_envs",
+    "split_env_id",
 ]
 
 
@@ -46,14 +54,100 @@ def register_envs() -> None:
 register_envs()
 
 
-def as_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
-    """``env`` itself, or the environment ``gymnasium.make(env, **make_args)`` makes of a registered id
-    (avq's own ids included); a ``ValueError`` naming the id when it cannot be made."""
-    if isinstance(env, str):
+#: The module that registered each id made from Gymnasium's ``module:id`` form in this process: a saved model
+#: records the id with its module (:func:`recorded_env_id`), so that loading it imports the module again.
+_REGISTERED_BY: dict[str, str] = {}
+
+
+def split_env_id(env_id: str) -> tuple[str | None, str]:
+    """``("mymodule", "user/Nav3D-v0")`` for Gymnasium's ``"mymodule:user/Nav3D-v0"``; ``(None, env_id)`` without a
+    module."""
+    module, sep, name = env_id.rpartition(":")
+    return (module, name) if sep else (None, env_id)
+
+
+def recorded_env_id(env_id: str) -> str:
+    """``env_id`` as a file should record it: with the module that registered it, if that was given as
+    ``module:id`` in this process (``"mymodule:user/Nav3D-v0"``); else as it is."""
+    module = _REGISTERED_BY.get(env_id)
+    return f"{module}:{env_id}" if module and split_env_id(env_id)[0] is None else env_id
+
+
+@contextmanager
+def _cwd_on_path() -> Iterator[str]:
+    """The working directory first on ``sys.path`` while the block runs, as ``python -m`` puts it."""
+    cwd = os.getcwd()
+    sys.path.insert(0, cwd)
+    try:
+        yield cwd
+    finally:
+        with suppress(ValueError):
+            sys.path.remove(cwd)  # (the first occurrence: the one inserted)
+
+
+def _import_registering_module(module: str, env_id: str) -> None:
+    """Import ``module``, which registers ``env_id``, from the working directory or the Python path; a
+    ``ValueError`` naming the module, what went wrong and what to do when it cannot be imported."""
+    given = f"{module}:{env_id}"
+    with _cwd_on_path() as cwd:
         try:
-            return gym.make(env, **make_args)
-        except (gym.error.Error, TypeError) as exc:
-            raise ValueError(f"cannot make environment {env!r}: {exc}") from None
-    if not isinstance(env, gym.Env):
-        raise TypeError(f"env must be a gymnasium.Env or a registered id, not {type(env).__name__}")
-    return env
+            importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            if exc.name is not None and (module == exc.name or module.startswith(exc.name + ".")):
+                file = module.replace(".", os.sep) + ".py"
+                raise ValueError(
+                    f"environment {given!r}: no module named {module!r} in the working directory {cwd} nor on the "
+                    f"Python path; run avq from the directory that holds {file} (or put that directory on "
+                    "PYTHONPATH), or correct the module's name before the ':'"
+                ) from None
+            raise ValueError(
+                f"environment {given!r}: importing module {module!r} failed: it imports {exc.name!r}, which is not "
+                f"installed; install it (pip install {exc.name.split('.')[0] if exc.name else '...'})"
+            ) from None
+        except Exception as exc:  # noqa: BLE001  (any error of the user's module: say where, without a traceback)
+            frames = [f for f in traceback.extract_tb(exc.__traceback__) if "importlib" not in f.filename]
+            where = f" ({frames[-1].filename}, line {frames[-1].lineno})" if frames else ""
+            raise ValueError(
+                f"environment {given!r}: importing module {module!r} failed with {type(exc).__name__}: {exc}{where}; "
+                "fix the module (python -c 'import " + module + "' shows the traceback)"
+            ) from None
+
+
+def as_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
+    """``env`` itself, or the environment ``gymnasium.make(env, **make_args)`` makes of a registered id.
+
+    The one place where avq makes an environment from an id: avq's own ids, any id registered by an installed
+    package, and Gymnasium's ``"module:id"`` form (``"mymodule:user/Nav3D-v0"``), where importing ``module``
+    registers the id; the module is imported from the working directory (as ``python -m`` does) or the
+    Python path.
+
+    Raises:
+        ValueError: the id is unknown, its module cannot be imported (the message names the module and
+            what to do), or ``make_args`` are not arguments of the environment.
+        TypeError: ``env`` is neither an environment nor a string.
+    """
+    if not isinstance(env, str):
+        if not isinstance(env, gym.Env):
+            raise TypeError(f"env must be a gymnasium.Env or a registered id, not {type(env).__name__}")
+        return env
+    module, env_id = split_env_id(env)
+    if module is not None:
+        if not module or not env_id:
+            raise ValueError(f"environment {env!r}: give MODULE:ID, as in 'mymodule:user/Nav3D-v0'")
+        _import_registering_module(module, env_id)
+    with _cwd_on_path():  # (an entry point "module:Class" is imported by gymnasium.make)
+        try:
+            made = gym.make(env_id, **make_args)
+        except gym.error.Error as exc:
+            hint = (
+                f"; module {module!r} was imported but does not register it"
+                if module is not None
+                else "; if a module of yours registers it, give MODULE:ID (as in 'mymodule:" + env_id + "'), "
+                "and avq imports the module from the working directory"
+            )
+            raise ValueError(f"unknown environment {env!r} ({exc}){hint}") from None
+        except TypeError as exc:
+            raise ValueError(f"bad env-kwargs for {env!r}: {exc}") from None
+    if module is not None:
+        _REGISTERED_BY[env_id] = module
+    return made

@@ -34,7 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from avq._io import atomic_write_bytes, hold_directory, make_dirs
+from avq._io import atomic_write_bytes, check_output_dir, hold_directory, make_dirs
 from avq.sweep.backends import _RUNNERS, BACKENDS, _check_backend
 from avq.sweep.config import METRICS, SweepConfig, _is_int, read_sweep_config
 from avq.sweep.results import _plot_curves, _rows, _write_results, report
@@ -118,6 +118,8 @@ def run_sweep(
             before = json.loads(saved.read_text(encoding="utf-8"))
             if before != json.loads(json.dumps(cfg.as_dict())):
                 raise ValueError(f"{out} holds a different sweep (see {saved}); choose another --out")
+        else:
+            check_output_dir(out, "avq sweep")
         atomic_write_bytes(saved, json.dumps(cfg.as_dict(), indent=2).encode())
         trials = plan_trials(cfg)
         results: dict[int, dict[str, Any]] = {}

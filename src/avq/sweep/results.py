@@ -110,8 +110,13 @@ def _plot_curves(out: Path, cfg: SweepConfig, trials: list[Trial], results: dict
 
 
 def report(out: str | os.PathLike, metric: str | None = None) -> str:
-    """The configurations of a finished (or partial) sweep ranked by ``metric``, as a table."""
-    from avq.plotting import mean_ci95
+    """The configurations of a finished (or partial) sweep ranked by ``metric``, as a table.
+
+    ``± 95%`` is the half-width of the t-interval of the mean over seeds; from fewer than
+    ``MIN_SEEDS_FOR_INTERVAL`` (5) seeds it is marked ``*`` and a note says that it is wide, often
+    wider than the range ``min``-``max`` beside it (over 2 seeds, 12.7 standard errors).
+    """
+    from avq.plotting import MIN_SEEDS_FOR_INTERVAL, mean_ci95
 
     out = Path(out)
     path = out / "results.csv"
@@ -146,12 +151,22 @@ def report(out: str | os.PathLike, metric: str | None = None) -> str:
         head,
         "-" * len(head),
     ]
+    few = False
     for k, (label, mean_k, half_k, vals, g) in enumerate(ranked, 1):
         lo = f"{vals.min():.4g}" if len(vals) else "-"
         hi = f"{vals.max():.4g}" if len(vals) else "-"
         spread = f"{half_k:.3g}" if len(vals) >= 2 else "-"
+        if 2 <= len(vals) < MIN_SEEDS_FOR_INTERVAL:
+            spread += "*"
+            few = True
         lines.append(
             f"{k:>4}  {label:<{width}}  {mean_k:>16.4g}  {spread:>9}  {lo:>9}  {hi:>9}  "
             f"{len(vals):>3}  {g['failed']:>6}"
+        )
+    if few:
+        lines.append(
+            f"* from fewer than {MIN_SEEDS_FOR_INTERVAL} seeds the 95% interval of the mean is wide (Student's t: "
+            "12.7 standard errors over 2 seeds, 4.3 over 3), often wider than the range min-max: read min and max, "
+            "or run more seeds"
         )
     return "\n".join(lines)

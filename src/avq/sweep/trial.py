@@ -15,14 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from avq._io import ProgressLog, atomic_write_bytes
+from avq._io import ProgressLog, atomic_write_bytes, file_name_part
 from avq.sweep.config import SweepConfig, _configurations, _split
 
 __all__ = ["Trial", "plan_trials", "run_trial", "final_return"]
-
-
-def _slug(text: str) -> str:
-    return "".join(c if c.isalnum() or c in "-." else "_" for c in text)
 
 
 @dataclass(frozen=True)
@@ -43,7 +39,7 @@ def plan_trials(config: SweepConfig) -> list[Trial]:
     out: list[Trial] = []
     for cid, (agent, point) in enumerate(_configurations(config)):
         for s, seed in enumerate(config.seeds):
-            name = f"c{cid:03d}-{_slug(agent)}-s{s:02d}"
+            name = f"c{cid:03d}-{file_name_part(agent)}-s{s:02d}"
             out.append(Trial(len(out), cid, agent, point, s, seed, name))
     return out
 
@@ -108,7 +104,7 @@ def run_trial(
     }
     if eval_episodes:
         eval_env = make_env(env, env_kwargs)
-        ev = evaluate_policy(model, eval_env, n_episodes=eval_episodes, seed=seed)
+        ev = evaluate_policy(model, eval_env, n_eval_episodes=eval_episodes, seed=seed)
         summary["eval_return"] = ev["mean_return"]
         summary["success_rate"] = ev["success_rate"]
         if hasattr(eval_env.unwrapped, "layout") and hasattr(eval_env.unwrapped.layout, "distances"):

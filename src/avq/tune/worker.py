@@ -153,7 +153,9 @@ def _measure(agent: Any, spec: dict[str, Any], seed: int) -> float:
     from avq.evaluation import evaluate_policy
     from avq.runs import make_env
 
-    ev = evaluate_policy(agent, make_env(spec["env"], spec["env_kwargs"]), n_episodes=spec["eval_episodes"], seed=seed)
+    ev = evaluate_policy(
+        agent, make_env(spec["env"], spec["env_kwargs"]), n_eval_episodes=spec["eval_episodes"], seed=seed
+    )
     key = "mean_return" if spec["metric"] == "eval_return" else "success_rate"
     return np.nan if ev[key] is None else float(ev[key])
 

@@ -107,6 +107,8 @@ class TileSarsa(PerStepAgent):
     in ``refused``, the tile lookups that overflowed the full table and were hashed.
     """
 
+    size_unit = "tiles"
+
     def __init__(
         self,
         env: gym.Env | str,
