@@ -39,6 +39,8 @@ __all__ = [
     "borrowed_maze",
     "borrowed_grid_maze",
     "drive",
+    "grid_rows",
+    "add_grid_rows",
     "maze_start",
     "maze_move",
     "maze_observation",
@@ -166,16 +168,28 @@ def borrowed_grid_maze(mz: Maze) -> Maze:
 
 
 def drive(
-    maze: CompiledMaze, kernel: Callable, grow: Callable[[], None], max_steps: int, max_episodes: int, max_records: int
+    maze: CompiledMaze,
+    loop: Callable,
+    state: Callable[[], tuple],
+    grow: Callable[[], None],
+    max_steps: int,
+    max_episodes: int,
+    max_records: int,
 ) -> tuple[int, np.ndarray]:
-    """Run ``kernel(pos, budget_steps, budget_episodes, rec)`` from the environment's current episode
-    until a budget is spent; returns ``(steps, records)`` and leaves the environment where the loop
-    stopped. ``grow()`` makes room when the kernel returns ``NEED_CAPACITY``."""
+    """Run a fused loop from the environment's current episode until a budget is spent; returns
+    ``(steps, records)`` and leaves the environment where the loop stopped.
+
+    The loop is called as ``loop(*state(), env_rng, maze, pos, budget_steps, budget_episodes, rec)``:
+    ``state()`` gives the agent's leading arguments (its records and generator), read again after each
+    ``grow()``, which makes room when the loop returns ``NEED_CAPACITY``."""
+    mz = maze_arguments(maze)
     pos = np.array(maze.episode_state(), dtype=np.float64)  # x, y, steps elapsed in the episode
     rec = np.zeros((min(max_episodes, max_records), N_R))
     steps = episodes = 0
     while True:
-        n, eps, status = kernel(pos, max_steps - steps, len(rec) - episodes, rec[episodes:])
+        n, eps, status = loop(
+            *state(), maze.np_random, mz, pos, int(max_steps - steps), int(len(rec) - episodes), rec[episodes:]
+        )
         steps += n
         episodes += eps
         if status != NEED_CAPACITY:
@@ -183,6 +197,27 @@ def drive(
         grow()
     maze.set_episode_state(pos[0], pos[1], int(pos[2]))
     return steps, rec[:episodes]
+
+
+def grid_rows(index: dict[tuple[float, float], int], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """A table's rows keyed by grid square, as a fused grid loop reads them: ``row_of[y, x]`` (-1: no row
+    yet) and ``keys[row] = (x, y)``, from the table's index of ``(x, y)`` observations."""
+    h, w = shape
+    row_of = np.full((h, w), -1, dtype=np.int64)
+    keys = np.zeros((h * w, 2), dtype=np.int64)
+    for key, row in index.items():
+        row_of[int(key[1]), int(key[0])] = row
+        keys[row] = int(key[0]), int(key[1])
+    return row_of, keys
+
+
+def add_grid_rows(index: dict[tuple[float, float], int], order: list, keys: np.ndarray, first: int, end: int) -> None:
+    """The rows ``first..end-1`` that a fused grid loop added to ``keys``, added to the table's index and to
+    its list of keys in order of creation."""
+    for row in range(first, end):
+        key = (float(keys[row, 0]), float(keys[row, 1]))
+        index[key] = row
+        order.append(key)
 
 
 @njit(cache=True, inline="always")

@@ -310,19 +310,18 @@ class AVQSarsa(ScaledMetric, GenericPath):
         maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
-        mz = _maze_loop.maze_arguments(maze)
-
         loop = Compiled(run_avq_maze)  # (after its first call, the loop itself: typing a record costs µs)
-
-        def kernel(pos, budget_steps, budget_episodes, rec):
-            return loop(
-                core.Cells(*self._state()), self._rng, maze.np_random, mz, pos, budget_steps, budget_episodes, rec
-            )
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
-                maze, kernel, lambda: self._ensure_capacity(4), max_steps, max_episodes, max_records
+                maze,
+                loop,
+                lambda: (core.Cells(*self._state()), self._rng),
+                lambda: self._ensure_capacity(4),
+                max_steps,
+                max_episodes,
+                max_records,
             )
             return steps, rows, bool(self._S[core.IN_EPISODE])
 

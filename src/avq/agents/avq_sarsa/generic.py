@@ -13,7 +13,7 @@ act (cap + 1), pc (cap + 1, 2), IP, S.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
@@ -212,13 +212,13 @@ class GenericPath(BaseAgent):
 
     _VIEWS = ("_V", "_Q", "_E", "_born", "_act", "_pc", "_inv_scale", "_P", "_IP", "_S", "_F")
 
+    _transient: ClassVar[dict[str, Any]] = {"_direct": (None, None, None, None)}
+
     def __getstate__(self) -> dict[str, Any]:
         # The arrays are views of the two buffers: pickle the buffers and make the views again on loading.
-        # The compiled function of the last generic step cannot be pickled; the next step finds it again.
-        state = self.__dict__.copy()
+        state = super().__getstate__()
         for name in self._VIEWS + ("_views",):
             state.pop(name, None)
-        state["_direct"] = (None, None, None, None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:

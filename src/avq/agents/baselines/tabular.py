@@ -104,41 +104,29 @@ class TabularSarsa(TableSarsa):
         maze = _maze_loop.plan(self.env, grid_only=True) if self.fused and not self._discrete else None
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer rows than squares, the Python path says when max_states is reached)
-        h, w = maze.dynamics.walls.shape
-        mz = _maze_loop.maze_arguments(maze)
+        shape = maze.dynamics.walls.shape
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
-            self._grow_table(h * w)  # a row for every position, as _row would grow it
-            row_of = np.full((h, w), -1, dtype=np.int64)
-            keys = np.zeros((h * w, 2), dtype=np.int64)
-            for key, row in self._index.items():
-                row_of[int(key[1]), int(key[0])] = row
-                keys[row] = int(key[0]), int(key[1])
+            self._grow_table(shape[0] * shape[1])  # a row for every position, as _row would grow it
+            row_of, keys = _maze_loop.grid_rows(self._index, shape)
             T = np.array(
                 [self._n, self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)],
                 dtype=np.int64,
             )
             TF = np.array([self._ep_return])
-
-            def kernel(pos, budget_steps, budget_episodes, rec):
-                return run_tabular_grid_maze(
-                    Table(self._q, self._e, self._act, row_of, keys, T, TF),
-                    SarsaParams(self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing"),
-                    self._rng,
-                    maze.np_random,
-                    mz,
-                    pos,
-                    budget_steps,
-                    budget_episodes,
-                    rec,
-                )
-
-            steps, rows = _maze_loop.drive(maze, kernel, lambda: None, max_steps, max_episodes, max_records)
-            for row in range(self._n, int(T[0])):
-                key = (float(keys[row, 0]), float(keys[row, 1]))
-                self._index[key] = row
-                self._keys.append(key)
+            table = Table(self._q, self._e, self._act, row_of, keys, T, TF)
+            params = SarsaParams(self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing")
+            steps, rows = _maze_loop.drive(
+                maze,
+                run_tabular_grid_maze,
+                lambda: (table, params, self._rng),
+                lambda: None,
+                max_steps,
+                max_episodes,
+                max_records,
+            )
+            _maze_loop.add_grid_rows(self._index, self._keys, keys, self._n, int(T[0]))
             self._n, self._ep_row, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:5])
             self._ep_return = float(TF[0])
             return steps, rows, bool(T[5])

@@ -336,26 +336,20 @@ class PlanningAVQ(ScaledMetric, BaseAgent):
         maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
-        mz = _maze_loop.maze_arguments(maze)
         # (called once per learn() or episode: directly after the first call, for this maze's types)
-        loop = self._loops.setdefault(maze_types(mz), Compiled(run_plan_maze))
-
-        def kernel(pos, budget_steps, budget_episodes, rec):
-            return loop(
-                self._ag,
-                self._model.a,
-                self._rng,
-                maze.np_random,
-                mz,
-                pos,
-                int(budget_steps),
-                int(budget_episodes),
-                rec,
-            )
+        loop = self._loops.setdefault(maze_types(_maze_loop.maze_arguments(maze)), Compiled(run_plan_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
-            steps, rows = _maze_loop.drive(maze, kernel, self._make_room, max_steps, max_episodes, max_records)
+            steps, rows = _maze_loop.drive(
+                maze,
+                loop,
+                lambda: (self._ag, self._model.a, self._rng),
+                self._make_room,
+                max_steps,
+                max_episodes,
+                max_records,
+            )
             return steps, rows, bool(self._ag.S[IN_EPISODE])
 
         return run

@@ -218,53 +218,32 @@ class PrioritizedSweeping(PerStepAgent):
         )
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer states than squares, the Python path says when max_states is reached)
-        h, w = maze.dynamics.walls.shape
-        mz = _maze_loop.maze_arguments(maze)
         model = self._model
         # (called once per learn() or episode: directly after the first call, for this maze's types)
-        loop = self._loops.setdefault(maze_types(mz), Compiled(run_ps_grid_maze))
-
-        def kernel(pos, budget_steps, budget_episodes, rec):
-            return loop(
-                model.a,
-                table,
-                self.gamma,
-                self.epsilon,
-                self.n_backups,
-                self._rng,
-                maze.np_random,
-                mz,
-                pos,
-                int(budget_steps),
-                int(budget_episodes),
-                rec,
-            )
+        loop = self._loops.setdefault(maze_types(_maze_loop.maze_arguments(maze)), Compiled(run_ps_grid_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            nonlocal table
             self._draws.sync()  # the loop draws from the generator itself
-            row_of = np.full((h, w), -1, dtype=np.int64)
-            keys = np.zeros((h * w, 2), dtype=np.int64)
-            for key, row in self._index.items():
-                row_of[int(key[1]), int(key[0])] = row
-                keys[row] = int(key[0]), int(key[1])
+            row_of, keys = _maze_loop.grid_rows(self._index, maze.dynamics.walls.shape)
             T = np.array(
                 [self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)], dtype=np.int64
             )  # (indexed by fused.T_*)
             table = PSTable(row_of, keys, T, np.array([self._ep_return]))
             first_new = model.n_states
             steps, rows = _maze_loop.drive(
-                maze, kernel, lambda: model.reserve(states=1, edges=1), max_steps, max_episodes, max_records
+                maze,
+                loop,
+                lambda: (model.a, table, self.gamma, self.epsilon, self.n_backups, self._rng),
+                lambda: model.reserve(states=1, edges=1),
+                max_steps,
+                max_episodes,
+                max_records,
             )
-            for row in range(first_new, model.n_states):
-                key = (float(keys[row, 0]), float(keys[row, 1]))
-                self._index[key] = row
-                self._keys.append(key)
+            _maze_loop.add_grid_rows(self._index, self._keys, keys, first_new, model.n_states)
             self._ep_row, self._ep_action, self._ep_steps, self._ep_new = (int(v) for v in T[:4])
             self._ep_return = float(table.TF[0])
             return steps, rows, bool(T[4])
 
-        table = None
         return run
 
     # -- queries ----------------------------------------------------------------------------
