@@ -3,7 +3,7 @@ the dispatcher."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numba
 from numba import types
@@ -12,8 +12,7 @@ from numba.extending import intrinsic
 __all__ = ["Compiled", "borrowed", "direct_call"]
 
 
-@intrinsic
-def borrowed(typingctx, arr):
+def _borrowed(typingctx, arr):
     """A view of ``arr`` that does not own a reference to its memory.
 
     Numba counts references to an array with atomic increments and decrements each
@@ -36,6 +35,14 @@ def borrowed(typingctx, arr):
         return view._getvalue()
 
     return arr(arr), codegen
+
+
+if TYPE_CHECKING:  # (what a compiled caller sees: one array in, a view of it out)
+
+    def borrowed(arr: Any) -> Any: ...
+
+else:
+    borrowed = intrinsic(_borrowed)
 
 
 def direct_call(dispatcher: Any, args: tuple) -> Any:

@@ -25,6 +25,8 @@ __all__ = [
     "check_optional",
     "check_sarsa_params",
     "check_planning_params",
+    "SarsaSettings",
+    "PlanningSettings",
 ]
 
 T = TypeVar("T")
@@ -115,6 +117,30 @@ def check_optional(check: Callable[..., T], name: str, value: Any, *args: Any, *
         return check(name, value, *args, **kwargs)
     except InvalidParameterError as exc:
         raise InvalidParameterError(exc.name, f"{exc.expected} or None", exc.value) from None
+
+
+class SarsaSettings:
+    """The hyper-parameters every Sarsa(λ) agent shares, as :func:`check_sarsa_params` stores them (a base
+    class that declares them)."""
+
+    alpha: float
+    lam: float
+    gamma: float
+    epsilon: float
+    q_init: float
+    traces: str
+
+
+class PlanningSettings:
+    """The hyper-parameters every planning agent shares, as :func:`check_planning_params` stores them."""
+
+    gamma: float
+    epsilon: float
+    v_opt: float | str
+    v_min: float
+    known_after: int
+    n_backups: int
+    tol: float
 
 
 def check_sarsa_params(agent: Any, alpha: Any, lam: Any, gamma: Any, epsilon: Any, q_init: Any, traces: Any) -> None:

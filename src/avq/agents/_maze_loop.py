@@ -1,5 +1,3 @@
-# (Numba's @intrinsic borrowed() is typed by Numba with its typing context as first argument.)
-# mypy: disable-error-code="call-arg,unused-ignore"
 """The shared driver of fused training: a built-in maze's dynamics and an agent's rules in one compiled loop.
 
 :func:`plan` decides whether an environment can be fused: a ``GridMaze``, or a ``RobotMaze``
@@ -144,13 +142,13 @@ def _borrowed(mz: Maze, robot: bool) -> Maze:
         borrowed(mz.starts),
         mz.fixed,
         mz.move,
-        mz.radius,  # type: ignore[call-arg]
+        mz.radius,
         mz.slip,
         borrowed(mz.dirs),
         mz.sonar_range,
         mz.observe_sonar,
         mz.max_episode_steps,
-    )  # type: ignore[call-arg]
+    )
 
 
 @njit(cache=True, inline="always")

@@ -30,6 +30,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import (
+    SarsaSettings,
     check_bool,
     check_int,
     check_int_or_ints,
@@ -50,7 +51,7 @@ __all__ = ["ActionCodebookSarsa"]
 # -- the agent --------------------------------------------------------------------------------------------
 
 
-class ActionCodebookSarsa(PerStepAgent):
+class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
     """Linear Sarsa(λ) on tile-coded states over an adaptive codebook of continuous actions.
 
     The learner is :class:`avq.agents.TileSarsa`'s: ``Q(s, a) = sum_i w[i, a]``
@@ -98,14 +99,6 @@ class ActionCodebookSarsa(PerStepAgent):
     """
 
     size_unit = "actions"
-
-    # The Sarsa(λ) parameters, which check_sarsa_params stores.
-    alpha: float
-    lam: float
-    gamma: float
-    epsilon: float
-    q_init: float
-    traces: str
 
     def __init__(
         self,

@@ -10,7 +10,15 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._numba import Compiled
-from avq._validate import check_bool, check_choice, check_int, check_optional, check_range, check_sarsa_params
+from avq._validate import (
+    SarsaSettings,
+    check_bool,
+    check_choice,
+    check_int,
+    check_optional,
+    check_range,
+    check_sarsa_params,
+)
 from avq.agents import _maze_loop
 from avq.agents._maze_loop import N_R
 from avq.agents._params import pack_params
@@ -30,7 +38,7 @@ from avq.quantizer import Codebook
 __all__ = ["AVQSarsa"]
 
 
-class AVQSarsa(ScaledMetric, GenericPath):
+class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
     """Sarsa(λ) on the Voronoi cells of a growing and merging codebook.
 
     The agent keeps a codebook of vectors in observation space; the cell of an
@@ -301,7 +309,7 @@ class AVQSarsa(ScaledMetric, GenericPath):
     def _end_episode(self) -> EpisodeRecord:
         if self._estimated.any():
             self._update_scale()  # (before the merge pass, which then sees the new metric)
-        episode_end.end_episode(*self._state(), self._rec)
+        episode_end.end_episode(*self._state(), self._rec)  # type: ignore[call-arg]
         return episode_record(*self._rec)
 
     # -- the fused loop (avq.agents.avq_sarsa.fused) ------------------------------------------------

@@ -21,6 +21,7 @@ from numba.core.errors import TypingError
 
 from avq._numba import borrowed, direct_call
 from avq._random import DRAWS_PER_DECISION
+from avq.agents._spaces import RunningSpread
 from avq.agents.avq_sarsa.kernels import (
     ACTION,
     EP_STEPS,
@@ -183,6 +184,22 @@ class GenericPath(BaseAgent):
 
     _fb: np.ndarray
     _ib: np.ndarray
+    # Views of the two buffers (python_views), in the order of _VIEWS, and the agent's own attributes they use.
+    _views: tuple
+    _V: np.ndarray
+    _Q: np.ndarray
+    _E: np.ndarray
+    _born: np.ndarray
+    _act: np.ndarray
+    _pc: np.ndarray
+    _inv_scale: np.ndarray
+    _P: np.ndarray
+    _IP: np.ndarray
+    _S: np.ndarray
+    _F: np.ndarray
+    _direct: tuple
+    _spread: RunningSpread
+    max_cells: int
 
     def _allocate(self, cap: int) -> None:
         """(Re)make the agent's arrays for ``cap`` cells, keeping what they hold.
@@ -190,7 +207,7 @@ class GenericPath(BaseAgent):
         Every array is a view of two flat buffers (see :func:`avq.agents.avq_sarsa.kernels.unpack`), which the
         generic path hands to its one compiled call per step.
         """
-        n, m = self.env.observation_space.shape[0], self.n_actions
+        n, m = self._obs_shape()[0], self.n_actions
         fb_len, ib_len = packed_sizes(cap, n, m)
         fb, ib = np.zeros(fb_len), np.zeros(ib_len, dtype=np.int64)
         ib[:N_DIMS] = cap, n, m
@@ -229,7 +246,7 @@ class GenericPath(BaseAgent):
             for name, view in zip(self._VIEWS, views):
                 setattr(self, name, view)
 
-    def _state(self) -> tuple:
+    def _state(self) -> tuple[np.ndarray, ...]:
         return (
             self._V,
             self._Q,

@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from avq._validate import SarsaSettings
 from avq.agents._per_step import PerStepAgent
-from avq.agents._td import clear_traces, decide, table_step
+from avq.agents._td import SarsaParams, clear_traces, decide, table_step
 from avq.agents.base import EpisodeRecord, episode_record
 
 __all__ = ["TableSarsa", "observation_key", "greedy_over_rows"]
@@ -48,7 +49,7 @@ def greedy_over_rows(space: Any, obs: np.ndarray, row: Any, Q: np.ndarray) -> np
     return out
 
 
-class TableSarsa(PerStepAgent):
+class TableSarsa(SarsaSettings, PerStepAgent):
     """Base of the table agents: ``_q``, ``_e`` ``(rows, m)``, the active list ``_act`` of
     :mod:`avq.agents._td`, ``_n`` rows in use; the episode's row, action, steps, return and new rows."""
 
@@ -93,7 +94,7 @@ class TableSarsa(PerStepAgent):
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
         draws = self._draws
-        sp = (self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing")  # (SarsaParams' order)
+        sp = SarsaParams(self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing")
 
         def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:
             s2 = self._row(obs)

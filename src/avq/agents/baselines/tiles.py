@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import check_int, check_int_or_ints, check_per_dimension, check_sarsa_params
+from avq._validate import SarsaSettings, check_int, check_int_or_ints, check_per_dimension, check_sarsa_params
 from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import check_box_discrete, normalize_obs_bounds, resolve_bounds
 from avq.agents._td import sarsa_td_error, tile_step
@@ -69,7 +69,7 @@ def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | Non
     return n, ended
 
 
-class TileSarsa(PerStepAgent):
+class TileSarsa(SarsaSettings, PerStepAgent):
     """Linear Sarsa(λ) on tile-coded features, like Sutton & Barto's Mountain Car agent.
 
     The observation is tile-coded by a ``TileCoder`` (src/avq/tilecoding.py; ``n_tilings``

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._numba import Compiled, direct_call
-from avq._validate import check_bool, check_int, check_optional, check_planning_params, check_range
+from avq._validate import PlanningSettings, check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _maze_loop
 from avq.agents._params import pack_params
 from avq.agents._spaces import (
@@ -42,7 +42,7 @@ from avq.quantizer import Codebook
 __all__ = ["PlanningAVQ"]
 
 
-class PlanningAVQ(ScaledMetric, BaseAgent):
+class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
 
     It acts as AVQ does: one decision per cell of a growing codebook, repeated until the cell
@@ -202,7 +202,7 @@ class PlanningAVQ(ScaledMetric, BaseAgent):
         return self._model.queued
 
     def _setup(self) -> None:
-        n = self.env.observation_space.shape[0]
+        n = len(self._scale)
         values = dict(
             self.get_params(),
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
@@ -223,7 +223,7 @@ class PlanningAVQ(ScaledMetric, BaseAgent):
             e_xs=np.zeros((0, n)),
         )
         self._model = _model.Model(
-            self.n_actions, 0.0 if self.v_opt == "auto" else self.v_opt, self.v_min, self.known_after, self.tol
+            self.n_actions, 0.0 if isinstance(self.v_opt, str) else self.v_opt, self.v_min, self.known_after, self.tol
         )
         #: The largest reward seen (v_opt="auto").
         self._r_max = -np.inf

@@ -12,7 +12,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._numba import Compiled, direct_call
-from avq._validate import check_bool, check_int, check_int_or_ints, check_planning_params
+from avq._validate import PlanningSettings, check_bool, check_int, check_int_or_ints, check_planning_params
 from avq.agents import _maze_loop
 from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import check_box_discrete, check_table_spaces, normalize_obs_bounds
@@ -25,7 +25,7 @@ from avq.agents.plan.fused import PSTable, maze_types, run_ps_grid_maze
 __all__ = ["PrioritizedSweeping"]
 
 
-class PrioritizedSweeping(PerStepAgent):
+class PrioritizedSweeping(PlanningSettings, PerStepAgent):
     """Model-based RL: a learned model of every (observation, action) pair and prioritized sweeping over it.
 
     Each distinct observation is a state (as in ``tabular``). The model counts, for each pair, its
@@ -139,7 +139,7 @@ class PrioritizedSweeping(PerStepAgent):
         return self._model.queued
 
     def _setup(self) -> None:
-        self._model = _model.Model(self.n_actions, self.v_opt, self.v_min, self.known_after, self.tol)
+        self._model = _model.Model(self.n_actions, float(self.v_opt), self.v_min, self.known_after, self.tol)
         self._index: dict[Any, int] = {}
         self._keys: list[Any] = []
         self._ep_row = self._ep_action = self._ep_steps = self._ep_new = 0
