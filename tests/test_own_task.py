@@ -129,3 +129,14 @@ def test_file_name_parts_are_valid_on_every_system(text, name):
 def test_the_default_run_directory_drops_the_module_and_the_slash():
     assert re.fullmatch(r"user-Nav3D-v0__avq__3__\d+", default_run_dir("nav3d:user/Nav3D-v0", "avq", 3).name)
     assert re.fullmatch(r"MountainCar-v0__tiles__0__\d+", default_run_dir("MountainCar-v0", "tiles", 0).name)
+
+
+def test_the_defaults_of_an_id_in_the_module_form_are_the_ids():
+    """The entries of the defaults are keyed by the id alone: the module of ``module:id`` does not hide them
+    (``avq tune`` looks them up, and ``avq tune export`` keys its entry, with the id the study records)."""
+    from avq.agents.registry import agent_class, agent_defaults, defaults_key
+
+    assert defaults_key("avq", "somewhere:CartPole-v1") == "CartPole-v1"
+    assert agent_defaults("avq", "somewhere:CartPole-v1") == agent_defaults("avq", "CartPole-v1")
+    assert agent_class("avq", "somewhere:avq/GridMaze-v0") is agent_class("avq", "avq/GridMaze-v0")
+    assert defaults_key("avq", "nav3d:user/Nav3D-v0") == "*"

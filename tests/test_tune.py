@@ -127,6 +127,28 @@ def test_search_spaces_name_their_agents_parameters():
     assert agent_space("avq-plan")["d_min"].log and agent_space("tiles")["n_tilings"].kind == "categorical"
 
 
+@pytest.mark.parametrize("evaluations", range(1, 10))
+def test_the_pruner_stops_no_trial_in_the_first_third_of_its_budget(evaluations):
+    """After 5 trials that reported 0 at every evaluation, a trial that reports -1 is pruned at the first
+    evaluation that comes after a third of the budget (report k comes after k / evaluations of it), not before."""
+    from avq.tune.worker import PRUNER_STARTUP, _pruner
+
+    study = optuna.create_study(direction="maximize", pruner=_pruner("median", evaluations))
+    for _ in range(PRUNER_STARTUP):
+        trial = study.ask()
+        for step in range(1, evaluations + 1):
+            trial.report(0.0, step)
+        study.tell(trial, 0.0)
+    trial = study.ask()
+    pruned_at = None
+    for step in range(1, evaluations + 1):
+        trial.report(-1.0, step)
+        if trial.should_prune():
+            pruned_at = step
+            break
+    assert pruned_at is not None and pruned_at / evaluations >= 1 / 3 > (pruned_at - 1) / evaluations
+
+
 @pytest.mark.parametrize(
     ("space", "says"),
     [

@@ -155,9 +155,11 @@ class DefaultsUsed(NamedTuple):
 
 
 def defaults_key(name: str, env_id: str | None = None) -> str:
-    """The entry of ``DEFAULTS[name]`` that holds agent ``name``'s defaults on ``env_id``: the id or ``"*"``."""
+    """The entry of ``DEFAULTS[name]`` that holds agent ``name``'s defaults on ``env_id``: the id or ``"*"``
+    (the id without the module of Gymnasium's ``"module:id"`` form, as the entries are keyed)."""
     if name not in DEFAULTS:
         raise ValueError(f"unknown agent {name!r}; known agents: {', '.join(sorted(DEFAULTS))}")
+    env_id = None if env_id is None else split_env_id(env_id)[1]
     return env_id if env_id is not None and env_id != "*" and env_id in DEFAULTS[name] else "*"
 
 

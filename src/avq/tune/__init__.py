@@ -281,6 +281,7 @@ def best_entry(storage: str, study_name: str | None = None) -> str:
     import yaml
 
     from avq.agents.registry import AGENTS, ENTRIES, defaults_key
+    from avq.envs import split_env_id
 
     study, _ = _load(storage, study_name)
     best = _finished(study)
@@ -303,4 +304,4 @@ def best_entry(storage: str, study_name: str | None = None) -> str:
         entry["class"] = ENTRIES[agent][key].cls.__name__
     params = {**ENTRIES[agent][key].params, **(attrs.get("fixed") or {}), **t.params}
     entry["params"] = {k: (round(v, 6) if isinstance(v, float) and math.isfinite(v) else v) for k, v in params.items()}
-    return yaml.safe_dump({env: entry}, sort_keys=False, width=110)
+    return yaml.safe_dump({split_env_id(env)[1]: entry}, sort_keys=False, width=110)  # (keyed as the entries are)

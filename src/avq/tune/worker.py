@@ -71,7 +71,8 @@ def _pruner(kind: str, evaluations: int) -> Any:
 
     if kind == "none":
         return optuna.pruners.NopPruner()
-    return optuna.pruners.MedianPruner(n_startup_trials=PRUNER_STARTUP, n_warmup_steps=max(1, evaluations // 3))
+    # Report k comes after k / evaluations of the budget: none in its first third is pruned.
+    return optuna.pruners.MedianPruner(n_startup_trials=PRUNER_STARTUP, n_warmup_steps=-(-evaluations // 3))
 
 
 def counts(study: Any) -> dict[str, int]:
