@@ -13,7 +13,13 @@ from typing import Any, NoReturn
 from avq.cli.commands import UsageError, cmd_evaluate, cmd_plot, cmd_reproduce, cmd_sweep, cmd_train
 from avq.tune.cli import add_from_study_options, add_tune_command
 
-__all__ = ["build_parser"]
+__all__ = ["build_parser", "ENV_HELP", "positive_int"]
+
+#: What --env takes, for every command that has it.
+ENV_HELP = (
+    "registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0, or MODULE:ID for an environment "
+    "that a module of yours registers when imported (imported from the working directory, as python -m does)"
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -39,7 +45,7 @@ def _int_at_least(name: str, low: int):
     return parse
 
 
-def _positive_int(name: str):
+def positive_int(name: str):
     return _int_at_least(name, 1)
 
 
@@ -78,14 +84,14 @@ def build_parser() -> _Parser:
         "but an earlier reproduction is refused.",
     )
     rep.add_argument("--layout", default="lau2002", help="preset name or layout file (default lau2002)")
-    rep.add_argument("--seeds", type=_positive_int("--seeds"), default=10, help="number of seeds 0..N-1 (default 10)")
-    rep.add_argument("--trials", type=_positive_int("--trials"), default=1000, help="trials per run (default 1000)")
+    rep.add_argument("--seeds", type=positive_int("--seeds"), default=10, help="number of seeds 0..N-1 (default 10)")
+    rep.add_argument("--trials", type=positive_int("--trials"), default=1000, help="trials per run (default 1000)")
     rep.add_argument("--agents", default="avq-paper,avq,tabular", help="comma-separated agent names")
     rep.add_argument("--start", choices=["random", "fixed"], default="random", help="start positions (default random)")
     rep.add_argument("--out", default="reproduce-out", help="output directory (default reproduce-out)")
     rep.add_argument(
         "--jobs",
-        type=_positive_int("--jobs"),
+        type=positive_int("--jobs"),
         default=1,
         help="parallel processes (default 1: the compiled loops make one process fastest here)",
     )
@@ -107,15 +113,14 @@ def build_parser() -> _Parser:
     )
     tr.add_argument(
         "--env",
-        help="registered Gymnasium id, e.g. MountainCar-v0 or avq/RobotMaze-v0, or MODULE:ID for an environment "
-        "that a module of yours registers when imported (imported from the working directory, as python -m does)",
+        help=ENV_HELP,
     )
     from avq.agents.registry import AGENTS
 
     tr.add_argument("--agent", help=f"agent name (default avq): {', '.join(AGENTS)}")
     budget = tr.add_mutually_exclusive_group()
-    budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes to train (default 500)")
-    budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="environment steps to train")
+    budget.add_argument("--episodes", type=positive_int("--episodes"), help="episodes to train (default 500)")
+    budget.add_argument("--timesteps", type=positive_int("--timesteps"), help="environment steps to train")
     tr.add_argument("--seed", type=_nonnegative_int("--seed"), help="seed (default 0)")
     tr.add_argument("--out", help="run directory (default runs/{env}__{agent}__{seed}__{time})")
     tr.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter (repeatable)")
@@ -125,7 +130,7 @@ def build_parser() -> _Parser:
     tr.add_argument("--config", help="YAML file with env, env_kwargs, agent, params, seed, episodes|timesteps, out")
     tr.add_argument(
         "--checkpoint-every",
-        type=_positive_int("--checkpoint-every"),
+        type=positive_int("--checkpoint-every"),
         metavar="N",
         help="save DIR/checkpoint.zip and progress rows every N episodes (default 100)",
     )
@@ -165,7 +170,7 @@ def build_parser() -> _Parser:
         "--address",
         help="cluster address (ray: as for ray.init; dask: the scheduler); without one a local cluster is started",
     )
-    sw.add_argument("--jobs", type=_positive_int("--jobs"), help="parallel workers (default: CPU count)")
+    sw.add_argument("--jobs", type=positive_int("--jobs"), help="parallel workers (default: CPU count)")
     sw.add_argument("--metric", help="report: the metric to rank by (default: the config's, else final_return)")
     sw.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     sw.set_defaults(func=cmd_sweep)
@@ -184,13 +189,13 @@ def build_parser() -> _Parser:
         help="a directory written by 'avq train', or a model file written by agent.save "
         "(such as avq reproduce's models/NAME__seedS.zip, or a stopped run's DIR/checkpoint.zip)",
     )
-    ev.add_argument("--episodes", type=_positive_int("--episodes"), default=10, help="episodes (default 10)")
+    ev.add_argument("--episodes", type=positive_int("--episodes"), default=10, help="episodes (default 10)")
     ev.add_argument(
         "--seed", type=_nonnegative_int("--seed"), default=0, help="seed of the evaluation episodes (default 0)"
     )
     ev.add_argument(
         "--max-steps",
-        type=_positive_int("--max-steps"),
+        type=positive_int("--max-steps"),
         default=100_000,
         metavar="N",
         help="cut an episode the environment has not ended after N steps (default 100000)",
@@ -212,7 +217,7 @@ def build_parser() -> _Parser:
     pl.add_argument("--at", metavar="D=V,...", help="values of other dimensions in the slice, e.g. 2=0.0,3=0.0")
     pl.add_argument("--project", action="store_true", help="project the cells' centres instead of slicing")
     pl.add_argument("--bounds", metavar="D=LOW:HIGH,...", help="the range of a dimension, e.g. 1=-3:3")
-    pl.add_argument("--resolution", type=_positive_int("--resolution"), default=400, help="pixels per axis (400)")
+    pl.add_argument("--resolution", type=positive_int("--resolution"), default=400, help="pixels per axis (400)")
     pl.add_argument("--out", help="file to write (default DIR/policy_D0-D1.png, or beside MODEL.zip)")
     pl.set_defaults(func=cmd_plot)
     return parser

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from avq._io import atomic_write_bytes, check_output_dir, hold_directory, make_dirs
-from avq.sweep.backends import _RUNNERS, BACKENDS, _check_backend
+from avq.sweep.backends import BACKENDS, RUNNERS, check_backend
 from avq.sweep.config import METRICS, SweepConfig, _is_int, read_sweep_config
 from avq.sweep.results import _plot_curves, _rows, _write_results, report
 from avq.sweep.trial import Trial, _trial_kwargs, plan_trials, run_trial  # noqa: F401  (Trial: importable here, as before)
@@ -106,7 +106,7 @@ def run_sweep(
     if jobs is not None and not _is_int(jobs, 1):
         raise ValueError(f"jobs must be an integer >= 1, not {jobs!r}")
     cfg = config if isinstance(config, SweepConfig) else read_sweep_config(config)
-    _check_backend(backend, address)
+    check_backend(backend, address)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out} is a file; give a directory for the sweep")
@@ -145,7 +145,7 @@ def run_sweep(
         try:
             if todo:
                 kwargs = [_trial_kwargs(cfg, t, out) for t in todo]
-                for k, result in _RUNNERS[backend](kwargs, min(n_jobs, len(todo)), address):
+                for k, result in RUNNERS[backend](kwargs, min(n_jobs, len(todo)), address):
                     results[todo[k].index] = result
                     counts["done" if result["status"] == "ok" else "failed"] += 1
                     if bar is not None:

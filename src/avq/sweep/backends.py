@@ -18,7 +18,7 @@ from typing import Any
 
 from avq.sweep.trial import _safe_trial
 
-__all__ = ["BACKENDS"]
+__all__ = ["BACKENDS", "RUNNERS", "check_backend"]
 
 BACKENDS = ("local", "ray", "dask")
 
@@ -30,7 +30,7 @@ def _missing(backend: str, module: str) -> ValueError:
     )
 
 
-def _check_backend(backend: str, address: str | None) -> None:
+def check_backend(backend: str, address: str | None) -> None:
     """Fail before anything is written: the backend's package is missing, or its cluster is unreachable."""
     if backend == "ray":
         try:
@@ -155,7 +155,7 @@ def _run_dask(
             cluster.close()
 
 
-_RUNNERS: dict[str, Callable[..., Iterator[tuple[int, dict]]]] = {
+RUNNERS: dict[str, Callable[..., Iterator[tuple[int, dict]]]] = {
     "local": _run_local,
     "ray": _run_ray,
     "dask": _run_dask,

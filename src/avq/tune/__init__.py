@@ -90,7 +90,7 @@ def tune(
     continue one), else default to 3 seeds, 300 episodes, 5 evaluations and ``final_return``. Returns the
     study's summary (:func:`summary`). Raises ValueError on bad input, before anything is written.
     """
-    from avq.sweep.backends import _RUNNERS, BACKENDS, _check_backend
+    from avq.sweep.backends import BACKENDS, RUNNERS, check_backend
     from avq.sweep.config import spawn_seeds
     from avq.tune import space as spaces
     from avq.tune.worker import work
@@ -140,7 +140,7 @@ def tune(
     searched = spaces.read_space(space) if space is not None else spaces.agent_space(agent)
     where = f"search space {space}" if space is not None else f"avq/agents/defaults/{agent}.yaml 'search'"
     _check_task(given, searched, where)
-    _check_backend(backend, address)
+    check_backend(backend, address)
     study = _create(store, study_name, given, url)
     c0 = counts(study)
     log(
@@ -162,7 +162,7 @@ def tune(
         results = [work(spec)]
     else:
         jobs_specs = [dict(spec, worker=k) for k in range(jobs)]
-        results = [r for _, r in _RUNNERS[backend](jobs_specs, jobs, address, work)]
+        results = [r for _, r in RUNNERS[backend](jobs_specs, jobs, address, work)]
     failed = [r["error"] for r in results if r["status"] != "ok"]
     if failed:
         log(f"{len(failed)} of {len(results)} workers stopped with an error: {failed[0]}")

@@ -27,35 +27,35 @@ _DESCRIPTION = (
 
 def add_tune_command(command: Any) -> None:
     """Add ``avq tune`` through the parser's ``command(name, **kwargs)`` helper."""
-    from avq.cli.parser import _positive_int
+    from avq.cli.parser import ENV_HELP, positive_int
 
     tu = command("tune", help="tune an agent's parameters for a task with Optuna", description=_DESCRIPTION)
     tu.add_argument("action", nargs="?", choices=["run", "report", "export"], default="run", help="default run")
-    tu.add_argument("--env", help="registered Gymnasium id (default: the study's)")
+    tu.add_argument("--env", help=ENV_HELP + " (default: the study's)")
     tu.add_argument("--agent", help="agent name (default: the study's, else avq)")
     tu.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make")
     tu.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter fixed in every trial")
     tu.add_argument("--space", metavar="FILE.yaml", help="search space (default: the agent's 'search' in its defaults)")
     budget = tu.add_mutually_exclusive_group()
-    budget.add_argument("--episodes", type=_positive_int("--episodes"), help="episodes a seed (default 300)")
-    budget.add_argument("--timesteps", type=_positive_int("--timesteps"), help="env steps a seed")
+    budget.add_argument("--episodes", type=positive_int("--episodes"), help="episodes a seed (default 300)")
+    budget.add_argument("--timesteps", type=positive_int("--timesteps"), help="env steps a seed")
     tu.add_argument(
-        "--evaluations", type=_positive_int("--evaluations"), help="reports to the pruner per trial (default 5)"
+        "--evaluations", type=positive_int("--evaluations"), help="reports to the pruner per trial (default 5)"
     )
-    tu.add_argument("--seeds", type=_positive_int("--seeds"), help="seeds per trial (default 3)")
+    tu.add_argument("--seeds", type=positive_int("--seeds"), help="seeds per trial (default 3)")
     tu.add_argument("--seed", type=int, default=0, help="seeds the sampler and the trials' seeds (default 0)")
     tu.add_argument("--metric", help="final_return (default), eval_return or success_rate")
-    tu.add_argument("--eval-episodes", type=_positive_int("--eval-episodes"), help="greedy episodes (default 10)")
+    tu.add_argument("--eval-episodes", type=positive_int("--eval-episodes"), help="greedy episodes (default 10)")
     tu.add_argument("--n-trials", type=int, default=20, help="trials the study holds when done (default 20)")
     tu.add_argument("--timeout", type=float, metavar="SECONDS", help="start no trial after this time")
-    tu.add_argument("--jobs", type=_positive_int("--jobs"), default=1, help="parallel workers (default 1)")
+    tu.add_argument("--jobs", type=positive_int("--jobs"), default=1, help="parallel workers (default 1)")
     tu.add_argument("--backend", choices=["local", "ray", "dask"], default="local", help="where workers run")
     tu.add_argument("--address", help="cluster address (ray, dask); without one a local cluster is started")
     tu.add_argument("--storage", metavar="URL", help="any Optuna storage URL, or a journal file (FILE.log)")
     tu.add_argument("--study-name", help="default AGENT-ENV (report, export: the storage's only study)")
     tu.add_argument("--out", metavar="DIR", help="where study.db (the default storage) and best.yaml go")
     tu.add_argument("--pruner", choices=["median", "none"], default="median", help="default median")
-    tu.add_argument("--top", type=_positive_int("--top"), default=10, help="trials in the report (default 10)")
+    tu.add_argument("--top", type=positive_int("--top"), default=10, help="trials in the report (default 10)")
     tu.set_defaults(func=cmd_tune)
 
 
