@@ -100,11 +100,15 @@ def _kill_in_a_trial(proc: subprocess.Popen, url: str) -> tuple[str, int]:
         while True:
             proc.send_signal(signal.SIGSTOP)
             running = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,))
-            mine = [t.number for t in running if t.user_attrs.get("worker", "").endswith(f":{proc.pid}")]
+            mine = [
+                t.number
+                for t in running
+                if t.user_attrs.get("worker", "").endswith(f":{proc.pid}") and t.params  # (training, not sampling)
+            ]
             if mine:
                 proc.send_signal(signal.SIGKILL)
                 break
-            proc.send_signal(signal.SIGCONT)  # (between two trials, or the trial not yet marked with its worker)
+            proc.send_signal(signal.SIGCONT)  # (between two trials, or the trial not yet marked or sampled)
             threading.Event().wait(0.05)
         rest, _ = proc.communicate(timeout=60)
         return out + rest, mine[0]

@@ -156,6 +156,11 @@ def test_an_out_under_a_file_names_the_file(kind, tmp_path):
 def test_an_out_that_cannot_be_written_names_it(kind, inside, unwritable, tmp_path):
     out = unwritable / inside
     line = one_line_error(avq_cli(*_command(kind, out, tmp_path), cwd=tmp_path))
+    if kind == "train" and out == unwritable and any(out.iterdir()):  # (root: /sys, which holds files)
+        # train refuses a folder of other files before it writes anything there (its lock file included)
+        assert line.startswith(f"avq: error: --out {out} holds files that avq train did not write (")
+        assert line.endswith("; give a new or empty directory")
+        return
     assert f"cannot write {unwritable}" in line  # the directory given or the one it would be made in
     assert f"no permission to write in {unwritable}" in line and "choose a directory you can write to" in line
     assert "Errno" not in line and ".tmp" not in line
