@@ -76,7 +76,7 @@ class ModelArrays(NamedTuple):
     """The model's arrays: the record the compiled functions take (as ``m``), and the order of a model file.
 
     A function takes the arrays it uses into local names once (``cnt = m.cnt``), not in its loops: each
-    ``m.cnt`` is a new reference to count (or, borrowed, to check).
+    ``m.cnt`` is a new reference to count (borrowed, :class:`avq._numba.BorrowedArray`: none).
 
     Beware: in functions inlined at Numba's IR level (``inline="always"``) with a record argument, Numba 0.68
     silently dropped some writes to the record's arrays: the predecessor lists of :func:`record` (when
