@@ -231,7 +231,7 @@ def test_a_killed_run_continues(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("backend", ["local", "dask"])
+@pytest.mark.parametrize("backend", ["local", "dask", "ray"])
 def test_workers_of_a_backend_share_one_study(tmp_path, backend):
     url = f"sqlite:///{tmp_path / 'study.db'}"
     r = cli_in_process("tune", *TINY, "--storage", url, "--n-trials", "4", "--jobs", "2", "--backend", backend)
