@@ -167,6 +167,7 @@ def borrowed_grid_maze(mz: Maze) -> Maze:
 
 def drive(
     maze: CompiledMaze,
+    mz: Maze,
     loop: Callable,
     state: Callable[[], tuple],
     grow: Callable[[], None],
@@ -178,9 +179,9 @@ def drive(
     ``(steps, records)`` and leaves the environment where the loop stopped.
 
     The loop is called as ``loop(*state(), env_rng, maze, pos, budget_steps, budget_episodes, rec)``:
-    ``state()`` gives the agent's leading arguments (its records and generator), read again after each
-    ``grow()``, which makes room when the loop returns ``NEED_CAPACITY``."""
-    mz = maze_arguments(maze)
+    ``mz`` is the maze's record (:func:`maze_arguments`); ``state()`` gives the agent's leading arguments (its
+    records and generator), read again after each ``grow()``, which makes room when the loop returns
+    ``NEED_CAPACITY``."""
     pos = np.array(maze.episode_state(), dtype=np.float64)  # x, y, steps elapsed in the episode
     rec = np.zeros((min(max_episodes, max_records), N_R))
     steps = episodes = 0

@@ -318,12 +318,14 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
         if maze is None:
             return None
+        mz = _maze_loop.maze_arguments(maze)
         loop = Compiled(run_avq_maze)  # (after its first call, the loop itself: typing a record costs µs)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
                 maze,
+                mz,
                 loop,
                 lambda: (core.Cells(*self._state()), self._rng),
                 lambda: self._ensure_capacity(4),

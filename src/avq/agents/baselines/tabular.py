@@ -105,6 +105,7 @@ class TabularSarsa(TableSarsa):
         if maze is None or maze.dynamics.walls.size > self.max_states:
             return None  # (with fewer rows than squares, the Python path says when max_states is reached)
         shape = maze.dynamics.walls.shape
+        mz = _maze_loop.maze_arguments(maze)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
@@ -119,6 +120,7 @@ class TabularSarsa(TableSarsa):
             params = SarsaParams(self.epsilon, self.alpha, self.gamma, self.lam, self.traces == "replacing")
             steps, rows = _maze_loop.drive(
                 maze,
+                mz,
                 run_tabular_grid_maze,
                 lambda: (table, params, self._rng),
                 lambda: None,

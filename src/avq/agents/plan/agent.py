@@ -337,12 +337,14 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         if maze is None:
             return None
         # (called once per learn() or episode: directly after the first call, for this maze's types)
-        loop = self._loops.setdefault(maze_types(_maze_loop.maze_arguments(maze)), Compiled(run_plan_maze))
+        mz = _maze_loop.maze_arguments(maze)
+        loop = self._loops.setdefault(maze_types(mz), Compiled(run_plan_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
                 maze,
+                mz,
                 loop,
                 lambda: (self._ag, self._model.a, self._rng),
                 self._make_room,

@@ -220,7 +220,8 @@ class PrioritizedSweeping(PlanningSettings, PerStepAgent):
             return None  # (with fewer states than squares, the Python path says when max_states is reached)
         model = self._model
         # (called once per learn() or episode: directly after the first call, for this maze's types)
-        loop = self._loops.setdefault(maze_types(_maze_loop.maze_arguments(maze)), Compiled(run_ps_grid_maze))
+        mz = _maze_loop.maze_arguments(maze)
+        loop = self._loops.setdefault(maze_types(mz), Compiled(run_ps_grid_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             self._draws.sync()  # the loop draws from the generator itself
@@ -232,6 +233,7 @@ class PrioritizedSweeping(PlanningSettings, PerStepAgent):
             first_new = model.n_states
             steps, rows = _maze_loop.drive(
                 maze,
+                mz,
                 loop,
                 lambda: (model.a, table, self.gamma, self.epsilon, self.n_backups, self._rng),
                 lambda: model.reserve(states=1, edges=1),
