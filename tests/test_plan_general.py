@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import model as _model
+from avq.agents.plan import model as _model, tabular
 from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, horizon
 
 from conftest import ScriptedEnv
@@ -35,9 +35,12 @@ def test_a_decision_that_stays_split_after_steps_in_its_cell_gives_the_observati
     agent = line_agent(LINE).learn(total_episodes=1)
     assert agent.codebook_.ravel().tolist() == [0.0, 1.0, 2.0]
     # The transitions: 0 -> 1 (3 steps), 1 -> 2 (4 steps: x = 1.1-1.3 lie within d_min of 1.0, so the decision
-    # went on past split_after), 2 -> the end (1 step).
-    assert agent._ag.mem_i[:3].tolist() == [[0, 0, 1], [0, 1, 2], [0, 2, -1]]
+    # went on past split_after), 2 -> the end (1 step). (The last column, crossings, is kept only with merging on.)
+    assert agent._ag.mem_i[:3].tolist() == [[0, 0, 1, 0], [0, 1, 2, 0], [0, 2, -1, 0]]
     assert agent._ag.mem_f[:3, 0].tolist() == [-3.0, -4.0, -1.0]
+    # With merging on, the first two ended because the cell changed (crossings), the third because the episode did.
+    merging = line_agent(LINE, rho=1.0).learn(total_episodes=1)
+    assert merging._ag.mem_i[:3, 3].tolist() == [1, 1, 0]
     h = agent.episode_history()
     assert h["decisions"].tolist() == [3] and h["n_cells"].tolist() == [3] and h["refused"].tolist() == [0]
 
@@ -109,7 +112,7 @@ def test_raising_optimism_reaches_the_predecessors_of_an_untried_state():
     for _ in range(2):
         mdl.add_state()
     mdl.reserve(edges=1)
-    _model.observe(mdl.a, 0, 0, -1.0, 1.0, 1, 100)
+    tabular.observe(mdl.a, 0, 0, -1.0, 1.0, 1, 100)
     assert mdl.a.Q[0, 0] == -1.0
     mdl.raise_optimism(5.0)
     mdl.sweep(100)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import kernels as core, memory, model as _model
+from avq.agents.plan import kernels as core, memory, model as _model, tabular
 from avq.agents.plan.model import BACKUPS, HEAP_N, KNOWN, Model
 from avq.agents.plan.state import MEM_POS, N_F, SIZE, SLOPE_N, SLOPE_SUM, PlanParam
 
@@ -21,7 +21,7 @@ def model(m=2, v_opt=10.0, v_min=-100.0, known=1, tol=1e-9, states=3):
 
 def observe(mdl, s, a, r, disc, s2, budget=1000):
     mdl.reserve(edges=1)
-    return _model.observe(mdl.a, s, a, r, disc, s2, budget)
+    return tabular.observe(mdl.a, s, a, r, disc, s2, budget)
 
 
 # -- the model ----------------------------------------------------------------------------------------
@@ -204,8 +204,9 @@ def plan_agent(**kw):
     return agent
 
 
-def remember(agent, xs, a, x, R, disc=1.0):
-    """Store a transition from xs to x (cells by the current codebook) in the memory and the model."""
+def remember(agent, xs, a, x, R, disc=1.0, crossing=False):
+    """Store a transition from xs to x (cells by the current codebook) in the memory and the model (``crossing``:
+    it ended only because the cell changed)."""
     ag = agent._ag
     size = int(ag.S[SIZE])
 
@@ -215,9 +216,11 @@ def remember(agent, xs, a, x, R, disc=1.0):
     i, j = cell(xs), cell(x)
     t = int(ag.S[MEM_POS])
     ag.xs[:] = xs  # (the current transition's start)
-    memory.remember(ag, np.asarray(x, float), a, i, j, R, disc)
+    memory.remember(ag, np.asarray(x, float), a, i, j, R, disc, crossing)
     agent._make_room()
-    memory.record_with_start(agent._model.a, agent._ag.e_xs, ag.mem_x, t, i, a, R, disc, j, 1)
+    memory.record_with_start(
+        agent._model.a, agent._ag.e_xs, ag.mem_x, t, i, a, R, disc, memory.successor(i, j, crossing), 1
+    )
     return i, j
 
 
@@ -239,7 +242,7 @@ def test_appending_a_cell_moves_the_remembered_transitions_that_now_start_or_end
     assert c == 2
     # The second transition's end (2, 2) is the new vector itself: it moves to cell 2. Its start (1, 2) lies at
     # distance 1 from both (1, 1) and (2, 2): a tie stays with the lower index, cell 0. The first is unchanged.
-    assert agent._ag.mem_i[:2].tolist() == [[1, 0, 1], [1, 0, 2]]
+    assert agent._ag.mem_i[:2].tolist() == [[1, 0, 1, 0], [1, 0, 2, 0]]
     assert m.cnt[0, 1] == 2 and m.cnt[2, 1] == 0
     assert agent._ag.e_xs[: m.C[_model.N_EDGES]].sum(axis=0).tolist() == [2.0, 3.0]  # the starts moved with them
 
@@ -282,7 +285,7 @@ def test_split_cell_cuts_the_cell_around_the_two_starts_and_moves_its_transition
     # (1, 3), which ties between (3, 1) and (3, 5) and so is in cell 0, to (3, 4) in cell 1.
     for xs, x in (((1, 1), (3, 1)), ((2, 1), (4, 1)), ((1, 3), (3, 4))):
         remember(agent, xs, 1, x, -1.0)
-    assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 0, 1]]
+    assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0, 0], [1, 0, 0, 0], [1, 0, 1, 0]]
     c = core.split_cell(agent._ag, agent._model.a, 0, 1, np.array([1.0, 1.0]), np.array([1.0, 3.0]))
     assert c == 2
     # Each successor's transitions go with the seed nearer their mean start: cell 0's (mean (1.5, 1)) with
@@ -290,7 +293,7 @@ def test_split_cell_cuts_the_cell_around_the_two_starts_and_moves_its_transition
     assert agent._ag.V[0].tolist() == [1.5, 1.0] and agent._ag.V[2].tolist() == [1.0, 3.0]
     # By the new vectors the third transition starts in cell 2 and still ends in cell 1 ((3, 4): 1 from
     # (3, 5), sqrt(5) from (1, 3)); the others stay in cell 0.
-    assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0], [1, 0, 0], [1, 2, 1]]
+    assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0, 0], [1, 0, 0, 0], [1, 2, 1, 0]]
     m = agent._model.a
     assert m.cnt[2, 1] == 1 and m.cnt[0, 1] == 2
     assert int(m.C[BACKUPS]) == 0 and m.hpos[0] >= 0 and m.hpos[2] >= 0  # both queued for a backup
@@ -368,7 +371,7 @@ def test_cycle_split_gives_the_square_of_a_known_return_a_cell(scripted):
     agent.learn(total_episodes=1)
     assert agent.n_cells == 3 and agent.codebook_[2].tolist() == [1.0, 0.0]
     # The last transition starts in the new cell: (2, 0) -> 1, the episode's end.
-    assert agent._ag.mem_i[4].tolist() == [0, 2, -1]
+    assert agent._ag.mem_i[4].tolist() == [0, 2, -1, 0]  # (the end of the episode: no crossing)
 
 
 def test_the_models_public_queue_and_sweep_back_up_a_queued_state():

@@ -35,6 +35,7 @@ __all__ = [
     "old_enough",
     "same_greedy_action",
     "stale_cell",
+    "merged_decision_leaves",
 ]
 
 #: Outcomes of :func:`collision_rule`.
@@ -179,3 +180,12 @@ def stale_cell(episodes: int, born: int, last_decision: int, prune_after: int) -
     """``prune_after``: a cell older than ``prune_after`` episodes in which no decision was taken for the
     last ``prune_after`` episodes."""
     return episodes - born >= prune_after and episodes - last_decision >= prune_after
+
+
+@njit(cache=True, inline="always")
+def merged_decision_leaves(exits: int, known: int) -> bool:
+    """``rho`` of the planning agent (merging under a model): two cells may merge only if the greedy decision of
+    each would leave the merged cell in what was seen, at least ``known`` of its transitions (``exits``) ending
+    outside it. The paper values a decision that cannot leave its cell at ``chi``; a merge that would make the
+    greedy decision such a one is refused."""
+    return exits >= known

@@ -29,6 +29,7 @@ from avq.agents.avq_sarsa import AVQSarsa
 from avq.agents.base import BaseAgent
 from avq.agents.baselines import GridSarsa, TabularSarsa, TileSarsa
 from avq.agents.plan import PlanningAVQ, PrioritizedSweeping
+from avq.agents.plan.merge import MODEL_MERGE_PARAMS
 from avq.agents.plan.model import PLANNING_PARAMS
 from avq.envs import split_env_id
 
@@ -220,15 +221,18 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
         raise ValueError("seed is not an agent parameter here: pass it as seed= (on the command line, --seed)")
     valid = set(cls._param_names()) - {"seed"}
     unknown = sorted(set(overrides) - valid)
-    planning = [p for p in unknown if p in PLANNING_PARAMS]
-    if planning:
-        plans = lambda n: set(PLANNING_PARAMS) <= set(agent_class(n, env_id)._param_names())  # noqa: E731
-        with_model = ", ".join(repr(n) for n in AGENTS if plans(n))
-        where = f" on {env_id or 'this environment'}" if varies else ""
-        raise ValueError(
-            f"{planning[0]!r} is an option of planning over a learned model, and agent {name!r} has no "
-            f"model{where}; the agents that plan{where} are {with_model}"
-        )
+    for family, what, who in (
+        (PLANNING_PARAMS, "planning over a learned model", "plan"),
+        (MODEL_MERGE_PARAMS, "merging cells under a learned model", "merge under a model"),
+    ):
+        given = [p for p in unknown if p in family]
+        if given:
+            has = lambda n, family=family: set(family) <= set(agent_class(n, env_id)._param_names())  # noqa: E731
+            where = f" on {env_id or 'this environment'}" if varies else ""
+            raise ValueError(
+                f"{given[0]!r} is an option of {what}, and agent {name!r} has no model{where}; "
+                f"the agents that {who}{where} are {', '.join(repr(n) for n in AGENTS if has(n))}"
+            )
     if unknown:
         raise ValueError(
             f"unknown parameter {unknown[0]!r} for agent {name!r}"

@@ -41,6 +41,9 @@ from avq.quantizer import Codebook
 
 __all__ = ["PlanningAVQ"]
 
+#: Arrays of a model file that grew with merging (avq 0.2), and their last dimension before it.
+_GREW = {"S": 16, "mem_i": 3}
+
 
 class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
@@ -99,6 +102,13 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             where the agent goes, down to ``d_min``; refused growth is counted once per decision). None: off
             (a decision lasts until the cell changes). On a task without collisions and with it off, the
             agent keeps its first cell.
+        rho: Merging (the paper's, under the model: src/avq/agents/plan/merge.py): at the end of an episode,
+            two cells whose decisions are all known and whose action-value profiles differ by a mean square
+            below ``rho`` merge, the pair chosen among each cell's ``merge_neighbours`` nearest; the model of
+            the merged cell is composed from its halves' remembered transitions (a decision that ended at the
+            old border goes on), and the outcome split may cut it again. None: no merging. Merging stops once
+            the memory is full (it rebuilds the model from what the memory holds).
+        merge_neighbours: How many of a cell's nearest cells may be its partner in a merge, >= 1.
         fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers
             only), run the maze and the agent in one compiled loop: the same results as stepping the
             environment from Python, faster. False always steps the environment from Python.
@@ -140,6 +150,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         max_cells: int = 2048,
         split_after: int | None = 5,
+        rho: float | None = None,
+        merge_neighbours: int = 3,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:
@@ -155,6 +167,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.split_after = check_optional(check_int, "split_after", split_after, 1)
+        self.rho = check_optional(check_range, "rho", rho, 0.0, np.inf, high_open=True)
+        self.merge_neighbours = check_int("merge_neighbours", merge_neighbours, 1)
         self.fused = check_bool("fused", fused)
         self._metric_params(scale, scale_warmup, obs_bounds)
         super().__init__(env, seed)
@@ -207,6 +221,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             self.get_params(),
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
             split_after=0 if self.split_after is None else self.split_after,
+            rho=-1.0 if self.rho is None else self.rho,
         )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(
@@ -218,7 +233,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             F=np.zeros(N_F + n + 1),
             xs=np.zeros(n),
             mem_x=np.zeros((self.memory, 2 * n)),
-            mem_i=np.zeros((self.memory, 3), dtype=np.int64),
+            mem_i=np.zeros((self.memory, 4), dtype=np.int64),
             mem_f=np.zeros((self.memory, 2)),
             e_xs=np.zeros((0, n)),
         )
@@ -393,10 +408,14 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         super()._load_state_dict(meta, arrays)
         for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f"):
-            mine = getattr(self._ag, name)
-            if arrays[name].shape != mine.shape:
-                raise ValueError(f"array {name} has shape {arrays[name].shape}; expected {mine.shape}")
-            mine[:] = arrays[name]
+            mine, theirs = getattr(self._ag, name), arrays[name]
+            if name in _GREW and theirs.shape[:-1] == mine.shape[:-1] and theirs.shape[-1] == _GREW[name]:
+                mine[:] = 0  # (a file from before merging: the entries added since are 0)
+                mine[..., : theirs.shape[-1]] = theirs
+                continue
+            if theirs.shape != mine.shape:
+                raise ValueError(f"array {name} has shape {theirs.shape}; expected {mine.shape}")
+            mine[:] = theirs
         codebook, size, n = arrays["codebook"], int(self._ag.S[SIZE]), self._ag.xs.shape[0]
         if codebook.shape != (size, n):
             raise ValueError(f"array codebook has shape {codebook.shape}; expected ({size}, {n})")

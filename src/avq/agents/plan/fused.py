@@ -31,6 +31,7 @@ from avq.agents._td import epsilon_greedy
 from avq.agents.plan import kernels as plan_core, model as _model
 from avq.agents.plan.model import ModelArrays, borrowed_model
 from avq.agents.plan.state import ACTION, GEOM, IN_EPISODE, SIZE, PlanArrays, borrowed_plan
+from avq.agents.plan.tabular import ps_step
 from avq.quantizer import nearest_index
 
 __all__ = ["run_plan_maze", "run_ps_grid_maze", "PSTable", "maze_types"]
@@ -140,7 +141,7 @@ def run_ps_grid_maze(
     rec,
 ):
     """Prioritized sweeping (``tabular-ps``) on a GridMaze: a state for every position on its first visit and
-    :func:`avq.agents.plan.model.ps_step` at every step, as ``PrioritizedSweeping`` does stepping the
+    :func:`avq.agents.plan.tabular.ps_step` at every step, as ``PrioritizedSweeping`` does stepping the
     environment. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the model may not hold a new
     state and a new edge."""
     m, table = borrowed_model(m), _borrowed_table(table)
@@ -172,7 +173,7 @@ def run_ps_grid_maze(
         T[T_STEPS] += 1
         TF[0] += r
         s2 = _ps_row(row_of, keys, T, m, int(pos[0]), int(pos[1]))
-        T[T_ACTION] = _model.ps_step(m, rng, T[T_ROW], T[T_ACTION], r, gamma, s2, terminated, epsilon, n_backups)
+        T[T_ACTION] = ps_step(m, rng, T[T_ROW], T[T_ACTION], r, gamma, s2, terminated, epsilon, n_backups)
         T[T_ROW] = s2
         if terminated or truncated:
             T[T_IN_EPISODE] = 0

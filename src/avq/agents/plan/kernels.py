@@ -43,7 +43,8 @@ from numba import njit
 from avq.agents._td import epsilon_greedy
 from avq.agents.plan import model as _model
 from avq.agents.plan.memory import record_with_start, relocate, remember
-from avq.agents.plan.model import ModelArrays, settled
+from avq.agents.plan.merge import merge_pass
+from avq.agents.plan.model import CONT, ModelArrays, known as known_pair, settled
 from avq.agents.plan.state import (
     ACTION,
     APPENDS,
@@ -58,6 +59,7 @@ from avq.agents.plan.state import (
     IN_EPISODE,
     MEM_N,
     MEM_POS,
+    MERGES,
     N_F,
     PREV_CELL,
     PREV_KNOWN,
@@ -193,9 +195,10 @@ def disagreement(ag: PlanArrays, m: ModelArrays, i: int, a: int, seen: float, sl
     e = m.head[i, a]
     while e >= 0:
         k = m.e_n[e]
-        if k > 0 and settled(m.cnt, m.C, m.e_to[e]):
+        if k > 0 and settled(m, m.e_to[e]):
             t = m.e_to[e]
-            v = (m.e_r[e] + (m.e_disc[e] * m.V[t] if t >= 0 else 0.0)) / k
+            later = m.V[t] if t >= 0 else (m.Q[i, a] if t == CONT else 0.0)  # (CONT: the decision goes on)
+            v = (m.e_r[e] + m.e_disc[e] * later) / k
             dist = 0.0
             for d in range(n):
                 z = (xs[d] - e_xs[e, d] / k) * inv_scale[d]
@@ -213,12 +216,12 @@ def disagreement(ag: PlanArrays, m: ModelArrays, i: int, a: int, seen: float, sl
 @njit(cache=True)
 def end_record(S, F, rec_row) -> None:
     """The finished episode's record row (the columns of ``avq.agents._maze_loop.R_*``): steps, return, cells,
-    appends, merges (none), refused, decisions."""
+    appends, merges, refused, decisions."""
     rec_row[0] = S[EP_STEPS]
     rec_row[1] = F[EP_RETURN]
     rec_row[2] = S[SIZE]
     rec_row[3] = S[APPENDS]
-    rec_row[4] = 0
+    rec_row[4] = S[MERGES]
     rec_row[5] = S[REFUSED]
     rec_row[6] = S[DECISIONS]
 
@@ -251,6 +254,7 @@ def start(ag: PlanArrays, m: ModelArrays, src, obs) -> int:
     S[APPENDS] = 0
     S[REFUSED] = 0
     S[SPLITS] = 0
+    S[MERGES] = 0
     S[DECISIONS] = 1
     S[IN_EPISODE] = 1
     S[PREV_CELL] = -1
@@ -316,7 +320,7 @@ def end_transition(
     record and plan, grow, and the next action or ``ENDED``. The rest of :func:`step`, which a fused loop
     calls only when a transition ends."""
     V, inv_scale, P, IP, S, F, xs = ag.V, ag.inv_scale, ag.P, ag.IP, ag.S, ag.F, ag.xs
-    cnt, Q = m.cnt, m.Q
+    Q = m.Q
     max_cells = IP[PlanIntParam.MAX_CELLS]
     i = S[CELL]
     a = S[ACTION]
@@ -340,7 +344,7 @@ def end_transition(
                 j = append_cell(ag, m, x)
             else:
                 S[REFUSED] += 1
-    known = cnt[i, a] >= m.C[_model.KNOWN]  # (before this transition is recorded)
+    known = known_pair(m, i, a)  # (before this transition is recorded)
     if IP[PlanIntParam.CYCLE_SPLIT] and not done and known and S[PREV_KNOWN] and closes_cycle(S[PREV_CELL], i, j):
         # Two decisions the model knew led from cell j to i and straight back into j: a cycle that the
         # greedy policy repeats for ever when the cells' values hold (as AVQSarsa's cycle_split; while
@@ -361,11 +365,13 @@ def end_transition(
         n = x.shape[0]
         other = F[N_F : N_F + n + 1]  # (scratch)
         excess = -np.inf
-        if IP[PlanIntParam.OUTCOME_SPLIT] and cnt[i, a] >= m.C[_model.KNOWN] and settled(cnt, m.C, jm):
+        if IP[PlanIntParam.OUTCOME_SPLIT] and known_pair(m, i, a) and settled(m, jm):
             seen = F[RET] + (0.0 if terminated else F[DISC] * m.V[j])
             excess = disagreement(ag, m, i, a, seen, value_slope(P, F), other)
         t = S[MEM_POS]
-        remember(ag, x, a, i, jm, F[RET], F[DISC])
+        # (a crossing: it ended only because the cell changed; composed only where cells merge)
+        crossing = P[PlanParam.RHO] >= 0.0 and not collision and not terminated and j != i
+        remember(ag, x, a, i, jm, F[RET], F[DISC], crossing)
         record_with_start(m, ag.e_xs, ag.mem_x, t, i, a, F[RET], F[DISC], jm, 1)
         if outcome_disagrees(excess, P[PlanParam.SPLIT_THRESHOLD]):
             bar = -np.inf  # the value of the next best decision in i
@@ -382,6 +388,7 @@ def end_transition(
         _model.settle(m, ag.mem_i[t, 1], IP[PlanIntParam.N_BACKUPS])
     if done:
         S[IN_EPISODE] = 0
+        S[MERGES] = merge_pass(ag, m)  # (docs: explanation/paper.md, Merging; avq.agents.plan.merge)
         return ENDED
     S[PREV_CELL] = i
     S[PREV_KNOWN] = known

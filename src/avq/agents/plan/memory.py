@@ -5,18 +5,29 @@ The last ``memory`` aggregate transitions are kept with their start and end obse
 observation now lies in another cell is moved in the model (removed from its old pair and added to
 the new one: :func:`relocate`), so that the model describes the current partition by what was seen.
 Beyond ``memory``, the oldest transition is overwritten: it stays in the model where it was.
+
+A transition that ended only because the cell changed (a *crossing*: no collision, no end of the episode) and
+whose two ends come to lie in one cell (cells merged) is recorded as going on (:data:`~avq.agents.plan.model.CONT`):
+:func:`successor`.
 """
 
 from __future__ import annotations
 
 from numba import njit
 
-from avq.agents.plan.model import FIRST, ModelArrays, record
+from avq.agents.plan.model import CONT, FIRST, ModelArrays, record
 from avq.agents.plan.queue import push
 from avq.agents.plan.state import MEM_N, MEM_POS, SIZE, PlanArrays, PlanIntParam
 from avq.quantizer import nearest_index
 
-__all__ = ["remember", "relocate", "record_with_start"]
+__all__ = ["remember", "relocate", "record_with_start", "successor"]
+
+
+@njit(cache=True, inline="always")
+def successor(start: int, end: int, crossing: int) -> int:
+    """The successor in the model of a transition from cell ``start`` to cell ``end`` (-1: terminal):
+    :data:`~avq.agents.plan.model.CONT` for a crossing that ends in the cell it started in (the decision goes on)."""
+    return CONT if crossing and end == start else end
 
 
 @njit(cache=True, inline="always")
@@ -73,13 +84,13 @@ def relocate(ag: PlanArrays, m: ModelArrays, u: int, w: int) -> None:
     n = V.shape[1]
     size = ag.S[SIZE]
     for t in range(ag.S[MEM_N]):
-        a, cs, ce = mem_i[t, 0], mem_i[t, 1], mem_i[t, 2]
+        a, cs, ce, cross = mem_i[t, 0], mem_i[t, 1], mem_i[t, 2], mem_i[t, 3]
         ns = _cell_after(V, size, mem_x, t, 0, cs, u, w, inv_scale)
         ne = ce if ce < 0 else _cell_after(V, size, mem_x, t, n, ce, u, w, inv_scale)
         if ns == cs and ne == ce:
             continue
-        record_with_start(m, e_xs, mem_x, t, cs, a, mem_f[t, 0], mem_f[t, 1], ce, -1)
-        record_with_start(m, e_xs, mem_x, t, ns, a, mem_f[t, 0], mem_f[t, 1], ne, 1)
+        record_with_start(m, e_xs, mem_x, t, cs, a, mem_f[t, 0], mem_f[t, 1], successor(cs, ce, cross), -1)
+        record_with_start(m, e_xs, mem_x, t, ns, a, mem_f[t, 0], mem_f[t, 1], successor(ns, ne, cross), 1)
         push(heap, hpos, prio, C, cs, FIRST)
         push(heap, hpos, prio, C, ns, FIRST)
         mem_i[t, 1] = ns
@@ -90,8 +101,9 @@ def relocate(ag: PlanArrays, m: ModelArrays, u: int, w: int) -> None:
 
 
 @njit(cache=True, inline="always")
-def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float) -> None:
-    """Keep the transition ``(i, a) -> j`` from ``ag.xs`` to ``x`` in the memory. When it is full, the oldest
+def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float, crossing: bool) -> None:
+    """Keep the transition ``(i, a) -> j`` from ``ag.xs`` to ``x`` (``crossing``: it ended only because the cell
+    changed) in the memory. When it is full, the oldest
     is overwritten: it stays in the model, in the cells it was in, but no longer follows their changes."""
     S, IP, xs, mem_x, mem_i, mem_f = ag.S, ag.IP, ag.xs, ag.mem_x, ag.mem_i, ag.mem_f
     t = S[MEM_POS]
@@ -104,6 +116,7 @@ def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float) -
     mem_i[t, 0] = a
     mem_i[t, 1] = i
     mem_i[t, 2] = j
+    mem_i[t, 3] = crossing
     mem_f[t, 0] = R
     mem_f[t, 1] = disc
     S[MEM_POS] = (t + 1) % IP[PlanIntParam.MEMORY]

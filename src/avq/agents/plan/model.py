@@ -10,6 +10,15 @@ transitions of any duration (an SMDP step):
 
     Q(s, a) = ( sum R + sum_{s'} (sum gamma ** k to s') * V(s') ) / n(s, a)      V(s) = max_a Q(s, a)
 
+**Decisions that go on** (``avq-plan``'s merged cells): a transition that ended only because the cell
+changed, and whose two ends now lie in one cell, is recorded with the successor :data:`CONT`: the decision
+would have gone on, so its value is the pair's own, ``Q(s, a)``, not ``V(s)``. Solved for ``Q(s, a)``:
+
+    Q(s, a) = ( sum R + sum_{s' != CONT} (sum gamma ** k to s') * V(s') ) / ( n(s, a) - sum gamma ** k to CONT )
+
+which is the cell's own loop, ``(I - P)^-1``, for any number of merges. ``cint`` counts those transitions:
+a pair is known once ``n - cint`` (transitions that left the cell) reaches ``known``.
+
 **Optimism** (R-max): a pair tried fewer than ``known`` times leads to a fictitious absorbing
 state worth ``v_opt``: ``Q(s, a) = v_opt``. A new state has every action unknown. **A floor**
 ``v_min`` bounds every known value from below, so that a model that loops for ever at a loss
@@ -25,15 +34,11 @@ call, so values converge over the following steps; the queue is empty when they 
 ``tol``). The model follows transitions that are removed as well as added (``sign = -1``),
 which is how ``avq-plan`` re-maps its remembered transitions when its cells change.
 
-Arrays (capacity ``S`` states, ``m`` actions, ``E`` edges), held by :class:`Model`:
-``cnt`` ``(S, m)`` transitions per pair; ``rsum`` ``(S, m)`` their returns; ``head`` ``(S, m)``
-the first edge of the pair's successor list; ``Q`` ``(S, m)``, ``V`` ``(S,)`` the planned values;
-edges ``e_to``, ``e_next``, ``e_n`` (transitions), ``e_disc`` (discount mass), ``e_r`` (returns); predecessors, one
-entry per edge into a state: ``p_head`` ``(S,)``, ``p_sa`` (``q * m + b``), ``p_edge``, ``p_next``;
-the queue: ``heap``, ``hpos`` (place in the heap or -1), ``prio``; counters ``C`` (index names below) and
-float parameters ``MP`` (declared by :class:`ModelParam`). The compiled functions take them as one
-record, :class:`ModelArrays` (``m.cnt``, ``m.Q``...), and the few small ones of the queue (``push``,
-``pop``) only the arrays they touch.
+Arrays (capacity ``S`` states, ``m`` actions, ``E`` edges), held by :class:`Model`, taken by the compiled
+functions as one record, :class:`ModelArrays`: per pair ``cnt``, ``cint``, ``rsum`` and ``head`` (the first edge
+of its successor list); ``Q``, ``V``; edges ``e_to``, ``e_next``, ``e_n``, ``e_disc`` (discount mass), ``e_r``;
+predecessors, one entry per edge into a state: ``p_head``, ``p_sa`` (``q * m + b``), ``p_edge``, ``p_next``;
+the queue ``heap``, ``hpos``, ``prio`` (:mod:`avq.agents.plan.queue`); counters ``C``; parameters ``MP``.
 """
 
 from __future__ import annotations
@@ -46,10 +51,9 @@ from numba import njit
 
 from avq._numba import Compiled, borrowed
 from avq.agents._params import ParamIndex, pack_params
-from avq.agents._td import epsilon_greedy
 from avq.agents.plan.queue import HEAP_N, pop, push
 
-__all__ = ["Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model"]
+__all__ = ["CONT", "Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "clear", "known"]
 
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
@@ -68,8 +72,9 @@ class ModelParam(ParamIndex):
     TOL = auto()  # smallest change of a value that is propagated
 
 
-#: The priority that makes a state's backup come first.
-FIRST = 1e300
+FIRST = 1e300  # the priority that makes a state's backup come first
+#: The successor of a transition that goes on in its own cell (its value is the pair's own); -1 is terminal.
+CONT = -2
 
 
 class ModelArrays(NamedTuple):
@@ -89,6 +94,7 @@ class ModelArrays(NamedTuple):
     """
 
     cnt: np.ndarray
+    cint: np.ndarray
     rsum: np.ndarray
     head: np.ndarray
     Q: np.ndarray
@@ -114,6 +120,7 @@ def borrowed_model(m: ModelArrays) -> ModelArrays:
     """``m`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for a fused loop's own use."""
     return ModelArrays(
         borrowed(m.cnt),
+        borrowed(m.cint),
         borrowed(m.rsum),
         borrowed(m.head),
         borrowed(m.Q),
@@ -138,6 +145,7 @@ def borrowed_model(m: ModelArrays) -> ModelArrays:
 def _empty(states: int, m: int, edges: int, v_opt: float) -> ModelArrays:
     return ModelArrays(
         cnt=np.zeros((states, m), dtype=np.int64),
+        cint=np.zeros((states, m), dtype=np.int64),
         rsum=np.zeros((states, m)),
         head=np.full((states, m), -1, dtype=np.int64),
         Q=np.full((states, m), v_opt),
@@ -241,34 +249,17 @@ class Model:
         C = arrays["m_C"]
         self.reserve(states=int(C[N_STATES]), edges=int(C[N_EDGES]))
         for name, arr in zip(ModelArrays._fields, self.a):
+            if name == "cint" and "m_cint" not in arrays:
+                continue  # (a file from before merging: no transition goes on, cint is 0)
             src = arrays["m_" + name]
             if src.shape[1:] != arr.shape[1:] or len(src) > len(arr):
                 raise ValueError(f"model array {name} has shape {src.shape}, which does not fit {arr.shape}")
             arr[: len(src)] = src
 
 
-#: Which capacity each array's first dimension follows: states, edges, or its own length.
-_DIM = {
-    "cnt": "S",
-    "rsum": "S",
-    "head": "S",
-    "Q": "S",
-    "V": "S",
-    "e_to": "E",
-    "e_next": "E",
-    "e_n": "E",
-    "e_disc": "E",
-    "e_r": "E",
-    "p_head": "S",
-    "p_sa": "E",
-    "p_edge": "E",
-    "p_next": "E",
-    "heap": "S",
-    "hpos": "S",
-    "prio": "S",
-    "C": "-",
-    "MP": "-",
-}
+#: Which capacity each array's first dimension follows: states ("S"), edges ("E"), or its own length ("-").
+_DIM = dict.fromkeys(("cnt", "cint", "rsum", "head", "Q", "V", "p_head", "heap", "hpos", "prio"), "S")
+_DIM.update(dict.fromkeys(("e_to", "e_next", "e_n", "e_disc", "e_r", "p_sa", "p_edge", "p_next"), "E"), C="-", MP="-")
 
 
 @njit(cache=True)
@@ -278,6 +269,7 @@ def add_state(m: ModelArrays) -> int:
     s = C[N_STATES]
     for a in range(Q.shape[1]):
         cnt[s, a] = 0
+        m.cint[s, a] = 0
         rsum[s, a] = 0.0
         head[s, a] = -1
         Q[s, a] = m.MP[ModelParam.V_OPT]
@@ -288,11 +280,29 @@ def add_state(m: ModelArrays) -> int:
     return s
 
 
+@njit(cache=True)
+def clear(m: ModelArrays) -> None:
+    """Forget every transition (the states stay, with their values): the model is then rebuilt by recording
+    transitions again. Every state is queued first."""
+    m.cnt[:] = 0
+    m.cint[:] = 0
+    m.rsum[:] = 0.0
+    m.head[:] = -1
+    m.p_head[:] = -1
+    m.hpos[:] = -1
+    m.C[N_EDGES] = 0
+    m.C[N_PREDS] = 0
+    m.C[HEAP_N] = 0
+    for s in range(m.C[N_STATES]):
+        push(m.heap, m.hpos, m.prio, m.C, s, FIRST)
+
+
 @njit(cache=True, inline="always")
 def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
-    cnt, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (
+    cnt, cint, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (
         m.cnt,
+        m.cint,
         m.rsum,
         m.head,
         m.Q,
@@ -306,17 +316,20 @@ def backup(m: ModelArrays, s: int) -> float:
     best = -np.inf
     for a in range(Q.shape[1]):
         n = cnt[s, a]
-        if n < C[KNOWN]:
+        if n - cint[s, a] < C[KNOWN]:
             q = MP[ModelParam.V_OPT]
         else:
             total = rsum[s, a]
+            stays = 0.0
             e = head[s, a]
             while e >= 0:
                 t = e_to[e]
                 if t >= 0:
                     total += e_disc[e] * V[t]
+                elif t == CONT:
+                    stays += e_disc[e]
                 e = e_next[e]
-            q = total / n
+            q = total / (n - stays)
             if q < MP[ModelParam.V_MIN]:
                 q = MP[ModelParam.V_MIN]
         Q[s, a] = q
@@ -340,7 +353,7 @@ def propagate(m: ModelArrays, s: int, dv: float) -> None:
         b = p_sa[k] - q * n_actions
         e = p_edge[k]
         n = cnt[q, b]
-        if n >= C[KNOWN] and e_n[e] > 0:
+        if n - m.cint[q, b] >= C[KNOWN] and e_n[e] > 0:
             p = dv * e_disc[e] / n
             if p > tol:
                 push(heap, hpos, prio, C, q, p)
@@ -375,12 +388,14 @@ def _add_predecessor(p_head, p_sa, p_edge, p_next, C, sa: int, e: int, s2: int) 
 
 @njit(cache=True, inline="always")
 def record(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, sign: int) -> int:
-    """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal) of return ``r`` and
-    discount ``disc``; return its edge. A successor seen for the first time takes an edge (and a
+    """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal, :data:`CONT`: goes on) of
+    return ``r`` and discount ``disc``; return its edge. A successor seen for the first time takes an edge (and a
     predecessor entry): the caller makes room for one."""
-    cnt, rsum, head, C = m.cnt, m.rsum, m.head, m.C
+    cnt, cint, rsum, head, C = m.cnt, m.cint, m.rsum, m.head, m.C
     e_to, e_next, e_n, e_disc, e_r = m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r
     cnt[s, a] += sign
+    if s2 == CONT:
+        cint[s, a] += sign
     rsum[s, a] += sign * r
     if cnt[s, a] == 0:
         rsum[s, a] = 0.0  # (no rounding left over from removed returns)
@@ -408,13 +423,19 @@ def record(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, sign:
 
 
 @njit(cache=True, inline="always")
-def settled(cnt, C, s: int) -> bool:
-    """Every action of ``s`` is known (``-1``, the terminal state, is settled): ``V(s)`` owes nothing directly
-    to optimism."""
+def known(m: ModelArrays, s: int, a: int) -> bool:
+    """Whether pair ``(s, a)`` is known: at least ``known`` of its transitions left the cell."""
+    return m.cnt[s, a] - m.cint[s, a] >= m.C[KNOWN]
+
+
+@njit(cache=True, inline="always")
+def settled(m: ModelArrays, s: int) -> bool:
+    """Every action of ``s`` is :func:`known` (``-1``, the terminal state, and :data:`CONT` are settled):
+    ``V(s)`` owes nothing directly to optimism."""
     if s < 0:
         return True
-    for a in range(cnt.shape[1]):
-        if cnt[s, a] < C[KNOWN]:
+    for a in range(m.cnt.shape[1]):
+        if not known(m, s, a):
             return False
     return True
 
@@ -427,24 +448,3 @@ def settle(m: ModelArrays, s: int, budget: int) -> int:
     if dv > m.MP[ModelParam.TOL]:
         propagate(m, s, dv)
     return 1 + sweep(m, budget)
-
-
-@njit(cache=True, inline="always")
-def observe(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, budget: int) -> int:
-    """Record the transition ``(s, a) -> s2`` (return ``r``, discount ``disc``; ``s2 = -1`` terminal), then
-    :func:`settle` ``s``. Returns the backups done."""
-    record(m, s, a, r, disc, s2, 1)
-    return settle(m, s, budget)
-
-
-@njit(cache=True, inline="always")
-def ps_step(
-    m: ModelArrays, src, s: int, a: int, r: float, gamma: float, s2: int, terminated: bool, epsilon: float, budget: int
-) -> int:
-    """One step of ``tabular-ps`` (a state per observation): record ``(s, a) -> s2`` with reward ``r`` and
-    discount ``gamma`` (terminal: no successor), plan (:func:`observe`), then the next action in ``s2``,
-    ε-greedy (``a`` itself on a terminal step, which draws nothing). Both paths call it."""
-    observe(m, s, a, r, gamma, -1 if terminated else s2, budget)
-    if terminated:
-        return a
-    return epsilon_greedy(src, m.Q, s2, epsilon)

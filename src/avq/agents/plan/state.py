@@ -35,6 +35,7 @@ class PlanParam(ParamIndex):
     D_MIN = auto()  # growth: no vector within d_min of another
     SPLIT_THRESHOLD = auto()  # outcome_split's excess
     VALUE_SLOPE = auto()  # outcome_split's slope; -1: estimated (value_slope=None)
+    RHO = auto()  # merging: the largest mean square difference of two cells' profiles; -1: off (rho=None)
 
 
 class PlanIntParam(ParamIndex):
@@ -47,6 +48,7 @@ class PlanIntParam(ParamIndex):
     MEMORY = auto()  # remembered transitions
     CYCLE_SPLIT = auto()
     SPLIT_AFTER = auto()  # 0: off (split_after=None)
+    MERGE_NEIGHBOURS = auto()  # merging: each cell's nearest cells among which its partner is sought
 
 
 # S: int state
@@ -55,7 +57,8 @@ PREV_CELL, PREV_KNOWN = 12, 13  # the cell of the decision before the current on
 # and whether that decision was of a known pair
 DEC_STEPS = 14  # the primitive steps taken so far with the current decision
 DEC_REFUSED = 15  # whether split_after's growth was refused during the current decision (counted once)
-N_S = 16
+MERGES = 16  # cells merged at the end of the current episode
+N_S = 17
 # F: float state
 RET, DISC, EP_RETURN, SLOPE_SUM, SLOPE_N = range(5)
 N_F = 5
@@ -76,8 +79,9 @@ class PlanArrays(NamedTuple):
     F: np.ndarray
     #: ``(n,)`` the observation that started the current transition.
     xs: np.ndarray
-    #: The memory: ``(M, 2n)`` start and end observations, ``(M, 3)`` action, start cell, end cell (-1:
-    #: terminal), ``(M, 2)`` return and discount.
+    #: The memory: ``(M, 2n)`` start and end observations, ``(M, 4)`` action, start cell, end cell (-1:
+    #: terminal) and whether it ended only because the cell changed (1, else 0; only with merging on, ``rho``),
+    #: ``(M, 2)`` return and discount.
     mem_x: np.ndarray
     mem_i: np.ndarray
     mem_f: np.ndarray

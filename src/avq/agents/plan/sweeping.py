@@ -21,6 +21,7 @@ from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents.plan import model as _model
 from avq.agents.plan.fused import PSTable, maze_types, run_ps_grid_maze
+from avq.agents.plan.tabular import ps_step
 
 __all__ = ["PrioritizedSweeping"]
 
@@ -188,7 +189,7 @@ class PrioritizedSweeping(PlanningSettings, PerStepAgent):
         # it chose is called directly (avq._numba.direct_call), which skips typing the model's record at every
         # call: the arguments keep their types (Model.reserve reallocates with the same dtypes, dimensions and
         # layout; the rest are ints, floats and a bool).
-        draws, model, kernel = self._draws, self._model, _model.ps_step
+        draws, model, kernel = self._draws, self._model, ps_step
         gamma, epsilon, n_backups = self.gamma, self.epsilon, self.n_backups
 
         def update(s: int, a: int, r: float, obs: Any, terminated: bool) -> tuple[int, int]:

@@ -1,0 +1,159 @@
+"""``avq-plan``'s merging: the paper's second mechanism (docs: explanation/paper.md, Merging) under a learned
+model, with the merged cell's model *composed* from its halves' transitions rather than averaged.
+
+At the end of an episode (``rho`` set, and the memory still holding every transition seen):
+
+1. each cell whose every decision is known looks, among its ``merge_neighbours`` nearest cells whose every
+   decision is known too, for the one whose action-value profile is closest (the paper's mean square
+   difference, :func:`avq.rules.mean_square_difference`); a pair under ``rho`` is a candidate;
+2. candidates are merged most similar first, each cell in one merge at most, unless the greedy decision of
+   either half would not leave the merged cell in what was seen (:func:`avq.rules.merged_decision_leaves`:
+   the paper gives a decision that cannot leave its cell the value ``chi``; here such a merge is refused);
+3. the first cell's vector moves to the midpoint and the second is removed (the cells after it move down
+   by one, their values with them);
+4. the model is rebuilt from the memory (:func:`rebuild`): every remembered transition is recorded again
+   between the cells its start and end observations now lie in, and a transition that ended only because
+   the cell changed, whose two ends now lie in one cell, as a decision that goes on
+   (:data:`avq.agents.plan.model.CONT`). So a merged cell's decision is valued as it would be run (it goes on
+   across the old border) without being explored again, and a later split cuts it by what was seen.
+
+The planned values are kept as a start: every cell is queued and the values converge over the next steps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from avq.agents.plan import model as _model
+from avq.agents.plan.memory import record_with_start, successor
+from avq.agents.plan.model import ModelArrays, settled
+from avq.agents.plan.state import GEOM, MEM_N, SIZE, PlanArrays, PlanIntParam, PlanParam
+from avq.quantizer import nearest_index
+from avq.rules import mean_square_difference, merged_decision_leaves
+
+__all__ = ["MODEL_MERGE_PARAMS", "merge_pass", "rebuild", "nearest_cells", "exits_after_merge"]
+
+#: The options of merging under a model that an agent without one does not have (``rho`` is ``AVQSarsa``'s too).
+MODEL_MERGE_PARAMS = ("merge_neighbours",)
+
+
+@njit(cache=True)
+def nearest_cells(V, size: int, i: int, k: int, inv_scale, out) -> int:
+    """The (at most) ``k`` cells nearest to cell ``i``'s vector, nearest first (lowest index on ties), into
+    ``out``; returns how many."""
+    dist = np.full(k, np.inf)
+    found = 0
+    for j in range(size):
+        if j == i:
+            continue
+        s = 0.0
+        for d in range(V.shape[1]):
+            z = (V[i, d] - V[j, d]) * inv_scale[d]
+            s += z * z
+        if found < k:
+            found += 1
+        elif not s < dist[k - 1]:
+            continue
+        p = found - 1
+        while p > 0 and s < dist[p - 1]:
+            dist[p] = dist[p - 1]
+            out[p] = out[p - 1]
+            p -= 1
+        dist[p] = s
+        out[p] = j
+    return found
+
+
+@njit(cache=True)
+def exits_after_merge(m: ModelArrays, i: int, j: int, a: int) -> int:
+    """The transitions of decision ``a`` in cells ``i`` and ``j`` that would leave the cell they make: those that
+    left either, less those from one into the other."""
+    total = 0
+    for c, other in ((i, j), (j, i)):
+        total += m.cnt[c, a] - m.cint[c, a]
+        e = m.head[c, a]
+        while e >= 0:
+            if m.e_to[e] == other:
+                total -= m.e_n[e]
+            e = m.e_next[e]
+    return total
+
+
+@njit(cache=True)
+def rebuild(ag: PlanArrays, m: ModelArrays) -> None:
+    """The model from the memory alone, in the current cells (:func:`avq.agents.plan.model.clear`, then every
+    remembered transition recorded again between the cells of its start and end observations)."""
+    V, inv_scale, mem_x, mem_i, mem_f, e_xs = ag.V, ag.inv_scale, ag.mem_x, ag.mem_i, ag.mem_f, ag.e_xs
+    e_xs[: m.C[_model.N_EDGES]] = 0.0
+    _model.clear(m)
+    n, size = V.shape[1], ag.S[SIZE]
+    for t in range(ag.S[MEM_N]):
+        cs, _ = nearest_index(V, size, mem_x[t, :n], inv_scale)
+        ce = mem_i[t, 2]
+        if ce >= 0:
+            ce, _ = nearest_index(V, size, mem_x[t, n:], inv_scale)
+        mem_i[t, 1] = cs
+        mem_i[t, 2] = ce
+        target = successor(cs, ce, mem_i[t, 3])
+        record_with_start(m, e_xs, mem_x, t, cs, mem_i[t, 0], mem_f[t, 0], mem_f[t, 1], target, 1)
+
+
+@njit(cache=True)
+def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
+    """Merge the cells that the rules above allow, rebuild the model and return how many merges were made
+    (0, changing nothing, when merging is off or the memory no longer holds every transition)."""
+    P, IP, S, V, Q, Vm = ag.P, ag.IP, ag.S, ag.V, m.Q, m.V
+    size = S[SIZE]
+    rho, k = P[PlanParam.RHO], IP[PlanIntParam.MERGE_NEIGHBOURS]
+    if rho < 0.0 or size < 2 or S[MEM_N] >= IP[PlanIntParam.MEMORY]:
+        return 0
+    partner = np.full(size, -1, dtype=np.int64)
+    gap = np.full(size, np.inf)
+    near = np.empty(k, dtype=np.int64)
+    for i in range(size):
+        if not settled(m, i):
+            continue
+        for p in range(nearest_cells(V, size, i, k, ag.inv_scale, near)):
+            j = near[p]
+            if settled(m, j):
+                g = mean_square_difference(Q[i], Q[j])
+                if g < rho and g < gap[i]:
+                    gap[i] = g
+                    partner[i] = j
+    order = np.argsort(gap, kind="mergesort")
+    gone = np.zeros(size, dtype=np.bool_)
+    used = np.zeros(size, dtype=np.bool_)
+    merges = 0
+    for q in range(size):
+        i = order[q]
+        j = partner[i]
+        if j < 0 or used[i] or used[j]:
+            continue
+        if not (
+            merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[i]))), m.C[_model.KNOWN])
+            and merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[j]))), m.C[_model.KNOWN])
+        ):
+            continue
+        keep, drop = min(i, j), max(i, j)
+        for d in range(V.shape[1]):
+            V[keep, d] = (V[keep, d] + V[drop, d]) / 2.0
+        used[i] = used[j] = gone[drop] = True
+        merges += 1
+    if merges == 0:
+        return 0
+    w = 0
+    for c in range(size):  # the cells left move down, their values with them
+        if gone[c]:
+            continue
+        if w != c:
+            V[w] = V[c]
+            Q[w] = Q[c]
+            Vm[w] = Vm[c]
+        w += 1
+    S[SIZE] = w
+    m.C[_model.N_STATES] = w
+    S[GEOM] += 1
+    rebuild(ag, m)
+    _model.sweep(m, IP[PlanIntParam.N_BACKUPS])
+    return merges

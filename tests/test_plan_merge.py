@@ -1,0 +1,238 @@
+"""avq-plan's merging (agents/plan/merge.py) and the model's decisions that go on (agents/plan/model.py, CONT):
+each rule set up by hand with the numbers written out, then the agent that trains with them (both paths, resume)."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import avq
+from avq.agents.plan import kernels, memory, merge, model as _model
+from avq.agents.plan.model import CONT, Model
+from avq.agents.plan.state import GEOM, MEM_N, MEM_POS, SIZE, PlanIntParam
+from avq.rules import merged_decision_leaves
+
+MAZE = {k: v for k, v in avq.agents.registry.DEFAULTS["avq-plan"]["avq/GridMaze-v0"].items() if k != "scale"}
+
+
+# -- the model: a decision that goes on ------------------------------------------------------------------
+
+
+def one_state_model(known=1):
+    mdl = Model(2, 10.0, -100.0, known, 1e-9)
+    mdl.add_state()
+    mdl.reserve(edges=8)
+    return mdl
+
+
+def test_a_transition_that_goes_on_is_valued_by_the_pairs_own_value():
+    mdl = one_state_model()
+    m = mdl.a
+    # (0, 0): once it went on inside the cell (return -1, discount 0.5), once it left to the end (return -1).
+    _model.record(m, 0, 0, -1.0, 0.5, CONT, 1)
+    _model.record(m, 0, 0, -1.0, 1.0, -1, 1)
+    _model.record(m, 0, 1, -5.0, 1.0, -1, 1)
+    assert m.cnt[0].tolist() == [2, 1] and m.cint[0].tolist() == [1, 0]
+    _model.settle(m, 0, 100)
+    # Q = -1 - 1 + 0.5 Q  over both:  2 Q = -2 + 0.5 Q  ->  Q = -2 / (2 - 0.5) = -4/3.
+    assert m.Q[0, 0] == pytest.approx(-4.0 / 3.0) and m.Q[0, 1] == -5.0
+    # Removing the transition that went on takes its count with it.
+    _model.record(m, 0, 0, -1.0, 0.5, CONT, -1)
+    _model.settle(m, 0, 100)
+    assert m.cint[0, 0] == 0 and m.Q[0, 0] == -1.0
+
+
+def test_a_pair_is_known_only_once_enough_of_its_transitions_left_the_cell():
+    mdl = one_state_model(known=2)
+    m = mdl.a
+    for _ in range(3):
+        _model.record(m, 0, 0, -1.0, 1.0, CONT, 1)
+    _model.record(m, 0, 0, -1.0, 1.0, -1, 1)
+    _model.settle(m, 0, 100)
+    # Four transitions, one left: not known (2 needed), so it is worth v_opt.
+    assert not _model.known(m, 0, 0) and m.Q[0, 0] == 10.0
+    _model.record(m, 0, 0, -1.0, 1.0, -1, 1)
+    _model.settle(m, 0, 100)
+    # Five, two left: Q = -5 / (5 - 3) = -2.5.
+    assert _model.known(m, 0, 0) and m.Q[0, 0] == -2.5
+
+
+def test_successor_is_cont_only_for_a_crossing_that_ends_where_it_started():
+    assert memory.successor(3, 3, 1) == CONT
+    assert memory.successor(3, 3, 0) == 3  # (a collision or a stay: the agent decides again there)
+    assert memory.successor(3, 4, 1) == 4
+    assert memory.successor(3, -1, 0) == -1
+
+
+def test_a_merge_is_refused_when_the_greedy_decision_would_not_leave():
+    assert merged_decision_leaves(1, 1) and not merged_decision_leaves(0, 1) and not merged_decision_leaves(1, 2)
+
+
+# -- the merge pass, on cells set by hand -------------------------------------------------------------------
+
+
+def plan_agent(**kw):
+    agent = avq.PlanningAVQ(
+        gym.make("avq/GridMaze-v0", layout="open5"), scale=1.0, seed=0, **{**MAZE, "rho": 2.0, **kw}
+    )
+    agent._setup()
+    agent._is_setup = True
+    return agent
+
+
+def add_cells(agent, *xs):
+    for x in xs:
+        agent._make_room()
+        kernels._new_cell(agent._ag, agent._model.a, np.asarray(x, float))
+
+
+def put(agent, xs, a, x, R, crossing=False, terminal=False):
+    """A transition from xs to x in the memory and the model, its cells by the current codebook."""
+    ag = agent._ag
+    size = int(ag.S[SIZE])
+    cell = lambda p: int(np.argmin(((ag.V[:size] - np.asarray(p, float)) ** 2).sum(axis=1)))  # noqa: E731
+    i, j = cell(xs), (-1 if terminal else cell(x))
+    t = int(ag.S[MEM_POS])
+    ag.xs[:] = xs
+    memory.remember(ag, np.asarray(x, float), a, i, j, R, 1.0, crossing)
+    agent._make_room()
+    memory.record_with_start(agent._model.a, ag.e_xs, ag.mem_x, t, i, a, R, 1.0, memory.successor(i, j, crossing), 1)
+
+
+def converge(agent):
+    for s in range(agent.n_cells):
+        agent._model.queue(s, _model.FIRST)
+    agent._model.sweep(100_000)
+
+
+A, B, C = (1.0, 1.0), (3.0, 1.0), (1.0, 4.0)
+
+
+def three_cells(agent, back_from_b=None):
+    """Cells A, B, C; every decision ends the episode at -10 except East (1): from A it crosses into B at -2;
+    from B it ends at -4 (or, with ``back_from_b``, crosses back into A at that return); from C it ends at -30."""
+    add_cells(agent, A, B, C)
+    for x in (A, B, C):
+        for a in (0, 2, 3):
+            put(agent, x, a, x, -10.0, terminal=True)
+    put(agent, A, 1, B, -2.0 if back_from_b is None else back_from_b, crossing=True)
+    if back_from_b is None:
+        put(agent, B, 1, B, -4.0, terminal=True)
+    else:
+        put(agent, B, 1, A, back_from_b, crossing=True)
+    put(agent, C, 1, C, -30.0, terminal=True)
+    converge(agent)
+
+
+def test_nearest_cells_are_listed_nearest_first_lowest_index_on_ties():
+    V = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 1.0], [-2.0, 0.0], [5.0, 5.0]])
+    out = np.zeros(3, dtype=np.int64)
+    assert merge.nearest_cells(V, 5, 0, 3, np.ones(2), out) == 3 and out.tolist() == [2, 1, 3]
+    assert merge.nearest_cells(V, 2, 0, 3, np.ones(2), out) == 1 and out[0] == 1
+
+
+def test_two_cells_with_close_profiles_merge_and_the_model_composes_their_decisions():
+    agent = plan_agent()
+    three_cells(agent)
+    m = agent._model.a
+    # East from A: -2 then B's -4; every other decision -10. Profiles A [-10, -6, -10, -10], B [-10, -4, -10,
+    # -10]: mean square 1, under rho 2. C's East is -30: 144 from A's, 169 from B's.
+    assert m.Q[0].tolist() == [-10.0, -6.0, -10.0, -10.0] and m.Q[1].tolist() == [-10.0, -4.0, -10.0, -10.0]
+    assert merge.exits_after_merge(m, 0, 1, 1) == 1  # (B's East leaves; A's went into B)
+    geom = int(agent._ag.S[GEOM])
+    assert merge.merge_pass(agent._ag, m) == 1
+    assert agent.n_cells == 2 and int(agent._ag.S[GEOM]) == geom + 1
+    # A's vector moves to the midpoint, B is gone and C moves down to index 1, with its values.
+    assert agent.codebook_.tolist() == [[2.0, 1.0], [1.0, 4.0]]
+    assert m.Q[1].tolist() == [-10.0, -30.0, -10.0, -10.0]
+    # The memory's cells follow; the crossing from A into B now ends in its own cell: it goes on.
+    rows = agent._ag.mem_i[: int(agent._ag.S[MEM_N])].tolist()
+    assert rows[9] == [1, 0, 0, 1] and rows[10] == [1, 0, -1, 0] and rows[11] == [1, 1, -1, 0]
+    assert m.cnt[0].tolist() == [2, 2, 2, 2] and m.cint[0].tolist() == [0, 1, 0, 0]
+    converge(agent)
+    # East in the merged cell: -2, goes on, -4: Q = (-2 - 4) / (2 - 1) = -6.
+    assert m.Q[0].tolist() == [-10.0, -6.0, -10.0, -10.0]
+    # The model is exactly what recording the memory in the new cells gives: its starts' sums included.
+    edges = int(m.C[_model.N_EDGES])
+    assert edges == 9 and agent._ag.e_xs[:edges].sum(axis=0).tolist() == list(
+        agent._ag.mem_x[: int(agent._ag.S[MEM_N]), :2].sum(axis=0)
+    )
+
+
+def test_a_merge_whose_greedy_decision_would_never_leave_is_refused():
+    agent = plan_agent()
+    # East from A crosses into B and East from B back into A, at no cost: both cells' greedy decision, and after
+    # a merge it would never leave the cell (the paper's chi). The profiles are equal (mean square 0).
+    three_cells(agent, back_from_b=0.0)
+    m = agent._model.a
+    assert np.argmax(m.Q[0]) == 1 and np.argmax(m.Q[1]) == 1 and np.array_equal(m.Q[0], m.Q[1])
+    assert merge.exits_after_merge(m, 0, 1, 1) == 0
+    assert merge.merge_pass(agent._ag, m) == 0 and agent.n_cells == 3
+
+
+def test_no_merge_above_rho_beyond_the_nearest_cells_or_once_the_memory_is_full():
+    agent = plan_agent(rho=0.5)  # (A and B differ by 1)
+    three_cells(agent)
+    assert merge.merge_pass(agent._ag, agent._model.a) == 0
+    agent = plan_agent(merge_neighbours=1)
+    add_cells(agent, (8.0, 8.0))  # (a cell never visited: A's nearest is B and B's is A, so they still merge)
+    three_cells(agent)
+    assert merge.merge_pass(agent._ag, agent._model.a) == 1
+    agent = plan_agent(memory=12)  # (three_cells remembers 12 transitions: the memory is full)
+    three_cells(agent)
+    assert int(agent._ag.S[MEM_N]) == agent._ag.IP[PlanIntParam.MEMORY]
+    assert merge.merge_pass(agent._ag, agent._model.a) == 0
+
+
+def test_cells_with_an_untried_decision_do_not_merge():
+    agent = plan_agent()
+    add_cells(agent, A, B)
+    for x in (A, B):
+        for a in (0, 1, 2):
+            put(agent, x, a, x, -10.0, terminal=True)
+    converge(agent)  # (West, 3, untried in both: worth v_opt in both, so the profiles agree)
+    assert np.array_equal(agent._model.a.Q[0], agent._model.a.Q[1])
+    assert merge.merge_pass(agent._ag, agent._model.a) == 0
+
+
+# -- the agent ----------------------------------------------------------------------------------------------
+
+
+def trained(fused, seed=1, episodes=150, **kw):
+    agent = avq.make_agent("avq-plan", gym.make("avq/GridMaze-v0"), seed=seed, fused=fused, rho=20.0, **kw)
+    return agent.learn(total_episodes=episodes)
+
+
+def test_merging_agent_is_the_same_on_both_paths_and_merges():
+    a, b = trained(True), trained(False)
+    assert np.array_equal(a.codebook_, b.codebook_) and np.array_equal(a.q_, b.q_)
+    ha, hb = a.episode_history(), b.episode_history()
+    for key in ("steps", "return", "n_cells", "appends", "merges", "refused", "decisions"):
+        assert np.array_equal(ha[key], hb[key]), key
+    assert ha["merges"].sum() > 0
+    plain = avq.make_agent("avq-plan", gym.make("avq/GridMaze-v0"), seed=1).learn(total_episodes=150)
+    assert a.n_cells < plain.n_cells
+
+
+def test_merging_agent_resumes_exactly(tmp_path):
+    straight = trained(True, episodes=120)
+    first = trained(True, episodes=60)
+    first.save(tmp_path / "half.zip")
+    resumed = avq.load(tmp_path / "half.zip", env=gym.make("avq/GridMaze-v0")).learn(total_episodes=60)
+    assert np.array_equal(straight.codebook_, resumed.codebook_) and np.array_equal(straight.q_, resumed.q_)
+    assert np.array_equal(straight.episode_history()["merges"], resumed.episode_history()["merges"])
+
+
+def test_bad_merge_options_get_clear_errors():
+    env = gym.make("avq/GridMaze-v0")
+    with pytest.raises(ValueError, match="rho"):
+        avq.make_agent("avq-plan", env, rho=-1.0)
+    with pytest.raises(ValueError, match="merge_neighbours"):
+        avq.make_agent("avq-plan", env, merge_neighbours=0)
+    with pytest.raises(
+        ValueError,
+        match="'merge_neighbours' is an option of merging cells under a learned model, and agent 'avq-paper' has no "
+        "model; the agents that merge under a model are ",
+    ):
+        avq.make_agent("avq-paper", env, merge_neighbours=3)
+    with pytest.raises(ValueError, match="unknown parameter 'rho' for agent 'tabular-ps'"):
+        avq.make_agent("tabular-ps", env, rho=20.0)
