@@ -169,6 +169,23 @@ def test_a_merge_whose_greedy_decision_would_never_leave_is_refused():
     assert merge.merge_pass(agent._ag, m) == 0 and agent.n_cells == 3
 
 
+def test_with_merge_same_action_cells_whose_greedy_actions_differ_do_not_merge():
+    for same_action, merges in ((True, 0), (False, 1)):
+        agent = plan_agent(rho=20.0, merge_same_action=same_action)
+        add_cells(agent, A, B)
+        # A: East crosses into B at -1, the rest -10; B: North ends at -3 (its greedy), East at -4, the rest -10.
+        # Profiles A [-10, -4, -10, -10] (East: -1 + V(B) = -4), B [-3, -4, -10, -10]: mean square 49 / 4.
+        for x, returns in ((A, (-10.0, None, -10.0, -10.0)), (B, (-3.0, -4.0, -10.0, -10.0))):
+            for a, r in enumerate(returns):
+                if r is not None:
+                    put(agent, x, a, x, r, terminal=True)
+        put(agent, A, 1, B, -1.0, crossing=True)
+        converge(agent)
+        m = agent._model.a
+        assert m.Q[0].tolist() == [-10.0, -4.0, -10.0, -10.0] and m.Q[1].tolist() == [-3.0, -4.0, -10.0, -10.0]
+        assert merge.merge_pass(agent._ag, m) == merges
+
+
 def test_no_merge_above_rho_beyond_the_nearest_cells_or_once_the_memory_is_full():
     agent = plan_agent(rho=0.5)  # (A and B differ by 1)
     three_cells(agent)

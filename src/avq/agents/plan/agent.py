@@ -109,6 +109,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             old border goes on), and the outcome split may cut it again. None: no merging. Merging stops once
             the memory is full (it rebuilds the model from what the memory holds).
         merge_neighbours: How many of a cell's nearest cells may be its partner in a merge, >= 1.
+        merge_same_action: Merge only cells whose greedy actions agree (as ``AVQSarsa``'s): a decision that
+            crossed from one into the other then goes on as it would have been taken again, so a merge does not
+            change where the greedy policy goes.
         fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers
             only), run the maze and the agent in one compiled loop: the same results as stepping the
             environment from Python, faster. False always steps the environment from Python.
@@ -152,6 +155,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         split_after: int | None = 5,
         rho: float | None = None,
         merge_neighbours: int = 3,
+        merge_same_action: bool = True,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:
@@ -169,6 +173,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         self.split_after = check_optional(check_int, "split_after", split_after, 1)
         self.rho = check_optional(check_range, "rho", rho, 0.0, np.inf, high_open=True)
         self.merge_neighbours = check_int("merge_neighbours", merge_neighbours, 1)
+        self.merge_same_action = check_bool("merge_same_action", merge_same_action)
         self.fused = check_bool("fused", fused)
         self._metric_params(scale, scale_warmup, obs_bounds)
         super().__init__(env, seed)

@@ -4,8 +4,9 @@ model, with the merged cell's model *composed* from its halves' transitions rath
 At the end of an episode (``rho`` set, and the memory still holding every transition seen):
 
 1. each cell whose every decision is known looks, among its ``merge_neighbours`` nearest cells whose every
-   decision is known too, for the one whose action-value profile is closest (the paper's mean square
-   difference, :func:`avq.rules.mean_square_difference`); a pair under ``rho`` is a candidate;
+   decision is known too (and, with ``merge_same_action``, whose greedy action is the same), for the one whose
+   action-value profile is closest (the paper's mean square difference,
+   :func:`avq.rules.mean_square_difference`); a pair under ``rho`` is a candidate;
 2. candidates are merged most similar first, each cell in one merge at most, unless the greedy decision of
    either half would not leave the merged cell in what was seen (:func:`avq.rules.merged_decision_leaves`:
    the paper gives a decision that cannot leave its cell the value ``chi``; here such a merge is refused);
@@ -30,7 +31,7 @@ from avq.agents.plan.memory import record_with_start, successor
 from avq.agents.plan.model import ModelArrays, settled
 from avq.agents.plan.state import GEOM, MEM_N, SIZE, PlanArrays, PlanIntParam, PlanParam
 from avq.quantizer import nearest_index
-from avq.rules import mean_square_difference, merged_decision_leaves
+from avq.rules import mean_square_difference, merged_decision_leaves, same_greedy_action
 
 __all__ = ["MODEL_MERGE_PARAMS", "merge_pass", "rebuild", "nearest_cells", "exits_after_merge"]
 
@@ -105,7 +106,7 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
     (0, changing nothing, when merging is off or the memory no longer holds every transition)."""
     P, IP, S, V, Q, Vm = ag.P, ag.IP, ag.S, ag.V, m.Q, m.V
     size = S[SIZE]
-    rho, k = P[PlanParam.RHO], IP[PlanIntParam.MERGE_NEIGHBOURS]
+    rho, k, same_action = P[PlanParam.RHO], IP[PlanIntParam.MERGE_NEIGHBOURS], IP[PlanIntParam.MERGE_SAME_ACTION]
     if rho < 0.0 or size < 2 or S[MEM_N] >= IP[PlanIntParam.MEMORY]:
         return 0
     partner = np.full(size, -1, dtype=np.int64)
@@ -116,7 +117,7 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
             continue
         for p in range(nearest_cells(V, size, i, k, ag.inv_scale, near)):
             j = near[p]
-            if settled(m, j):
+            if settled(m, j) and (not same_action or same_greedy_action(Q[i], Q[j])):
                 g = mean_square_difference(Q[i], Q[j])
                 if g < rho and g < gap[i]:
                     gap[i] = g

@@ -49,6 +49,7 @@ class PlanIntParam(ParamIndex):
     CYCLE_SPLIT = auto()
     SPLIT_AFTER = auto()  # 0: off (split_after=None)
     MERGE_NEIGHBOURS = auto()  # merging: each cell's nearest cells among which its partner is sought
+    MERGE_SAME_ACTION = auto()  # merging: only cells whose greedy actions agree
 
 
 # S: int state
