@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents.plan import kernels, memory, merge, model as _model
+from avq.agents.plan import explore, kernels, memory, merge, model as _model
 from avq.agents.plan.model import CONT, Model
 from avq.agents.plan.state import GEOM, MEM_N, MEM_POS, SIZE, PlanIntParam
 from avq.rules import merged_decision_leaves
@@ -245,6 +245,8 @@ def test_bad_merge_options_get_clear_errors():
         avq.make_agent("avq-plan", env, rho=-1.0)
     with pytest.raises(ValueError, match="merge_neighbours"):
         avq.make_agent("avq-plan", env, merge_neighbours=0)
+    with pytest.raises(ValueError, match="known_radius"):
+        avq.make_agent("avq-plan", env, known_radius=-0.1)
     with pytest.raises(
         ValueError,
         match="'merge_neighbours' is an option of merging cells under a learned model, and agent 'avq-paper' has no "
@@ -253,3 +255,25 @@ def test_bad_merge_options_get_clear_errors():
         avq.make_agent("avq-paper", env, merge_neighbours=3)
     with pytest.raises(ValueError, match="unknown parameter 'rho' for agent 'tabular-ps'"):
         avq.make_agent("tabular-ps", env, rho=20.0)
+
+
+# -- decisions never tried from near here (known_radius) ----------------------------------------------------
+
+
+def test_a_decision_never_tried_near_the_observation_is_worth_v_opt_while_learning():
+    for radius, expected in ((0.5, 1), (None, 0)):
+        agent = plan_agent(known_radius=radius)
+        add_cells(agent, A, B)
+        # Cell A: North ends at -5 (the greedy), South and West at -10, all from (1, 1); East at -20, tried only
+        # from (1, 2).
+        for a, r in ((0, -5.0), (2, -10.0), (3, -10.0)):
+            put(agent, A, a, A, r, terminal=True)
+        put(agent, (1.0, 2.0), 1, A, -20.0, terminal=True)
+        converge(agent)
+        ag, m = agent._ag, agent._model.a
+        x = np.array([1.0, 1.4])  # (0.4 from (1, 1), 0.6 from (1, 2))
+        assert explore.tried_near(ag, m, 0, 0, x, 0.5) and not explore.tried_near(ag, m, 0, 1, x, 0.5)
+        agent._draws.reserve()
+        # Within 0.5: East was never tried from near (1, 1.4), so it is worth v_opt (10) for this decision.
+        assert explore.decide(ag, m, agent._draws.src, 0, x) == expected
+        assert m.Q[0].tolist() == [-5.0, -20.0, -10.0, -10.0]  # (the planned values do not change)

@@ -18,7 +18,7 @@ import avq
 DATA = Path(__file__).parent / "data" / "models-0.1.0"
 #: Since 0.1.0, avq-plan merges cells under its model: its parameters (off by default), the model's count of
 #: transitions that go on (m_cint), a counter in its state (S) and a column of its memory (mem_i).
-ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True}
+ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True, "known_radius": None}
 ADDED_ARRAYS = {"m_cint"}
 GREW = {"S", "mem_i"}
 PAIRS = sorted({re.sub(r"__\d+\.zip$", "", p.name) for p in DATA.glob("*.zip")})

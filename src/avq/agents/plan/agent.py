@@ -112,6 +112,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         merge_same_action: Merge only cells whose greedy actions agree (as ``AVQSarsa``'s): a decision that
             crossed from one into the other then goes on as it would have been taken again, so a merge does not
             change where the greedy policy goes.
+        known_radius: While learning, a decision never tried from within this scaled distance of the current
+            observation (from the mean start of each of its successors' transitions) is worth at least ``v_opt``
+            for that decision (src/avq/agents/plan/explore.py): a decision known from one side of a large cell
+            is tried on the other. None: off (a decision is known wherever in its cell it was tried).
         fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers
             only), run the maze and the agent in one compiled loop: the same results as stepping the
             environment from Python, faster. False always steps the environment from Python.
@@ -156,6 +160,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         rho: float | None = None,
         merge_neighbours: int = 3,
         merge_same_action: bool = True,
+        known_radius: float | None = None,
         fused: bool = True,
         seed: int | None = None,
     ) -> None:
@@ -174,6 +179,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         self.rho = check_optional(check_range, "rho", rho, 0.0, np.inf, high_open=True)
         self.merge_neighbours = check_int("merge_neighbours", merge_neighbours, 1)
         self.merge_same_action = check_bool("merge_same_action", merge_same_action)
+        self.known_radius = check_optional(check_range, "known_radius", known_radius, 0.0, np.inf, high_open=True)
         self.fused = check_bool("fused", fused)
         self._metric_params(scale, scale_warmup, obs_bounds)
         super().__init__(env, seed)
@@ -227,6 +233,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
             split_after=0 if self.split_after is None else self.split_after,
             rho=-1.0 if self.rho is None else self.rho,
+            known_radius=-1.0 if self.known_radius is None else self.known_radius,
         )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(

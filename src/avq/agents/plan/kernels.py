@@ -40,8 +40,8 @@ import math
 import numpy as np
 from numba import njit
 
-from avq.agents._td import epsilon_greedy
 from avq.agents.plan import model as _model
+from avq.agents.plan.explore import decide
 from avq.agents.plan.memory import record_with_start, relocate, remember
 from avq.agents.plan.merge import merge_pass
 from avq.agents.plan.model import CONT, ModelArrays, known as known_pair, settled
@@ -266,7 +266,7 @@ def start(ag: PlanArrays, m: ModelArrays, src, obs) -> int:
     F[EP_RETURN] = 0.0
     cell, _ = nearest_index(ag.V, S[SIZE], obs, ag.inv_scale)
     S[CELL] = cell
-    S[ACTION] = epsilon_greedy(src, m.Q, cell, ag.P[PlanParam.EPSILON])
+    S[ACTION] = decide(ag, m, src, cell, obs)
     return S[ACTION]
 
 
@@ -400,5 +400,5 @@ def end_transition(
     S[DEC_STEPS] = 0
     S[DEC_REFUSED] = 0
     S[DECISIONS] += 1
-    S[ACTION] = epsilon_greedy(src, Q, j, P[PlanParam.EPSILON])
+    S[ACTION] = decide(ag, m, src, j, x)
     return S[ACTION]

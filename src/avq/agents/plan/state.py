@@ -36,6 +36,7 @@ class PlanParam(ParamIndex):
     SPLIT_THRESHOLD = auto()  # outcome_split's excess
     VALUE_SLOPE = auto()  # outcome_split's slope; -1: estimated (value_slope=None)
     RHO = auto()  # merging: the largest mean square difference of two cells' profiles; -1: off (rho=None)
+    KNOWN_RADIUS = auto()  # decisions: optimism for a decision never tried within it; -1: off (known_radius=None)
 
 
 class PlanIntParam(ParamIndex):
