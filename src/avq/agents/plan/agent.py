@@ -20,7 +20,7 @@ from avq.agents._spaces import (
     refresh_scale,
     scale_state,
 )
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.plan import kernels as core, memory, model as _model
 from avq.agents.plan.fused import maze_types, run_plan_maze
 from avq.agents.plan.state import (
@@ -37,12 +37,13 @@ from avq.agents.plan.state import (
     PlanParam,
     horizon,
 )
+from avq.agents.plan.sweeping import ModelPlanner
 from avq.quantizer import Codebook
 
 __all__ = ["PlanningAVQ"]
 
 
-class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
+class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
 
     It acts as AVQ does: one decision per cell of a growing codebook, repeated until the cell
@@ -175,16 +176,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         return self._ag.V[: self.n_cells].copy()
 
     @property
-    def q_(self) -> np.ndarray:
-        return self._model.a.Q[: self.n_cells].copy()
-
-    @property
-    def model_(self) -> _model.Model:
-        """The learned model of the cells and its planner's queue, for inspection (as
-        :attr:`avq.agents.sweeping.PrioritizedSweeping.model_`)."""
-        return self._model
-
-    @property
     def v_opt_(self) -> float:
         """What an untried decision is worth now (``v_opt``, or with ``"auto"`` its value so far)."""
         return (
@@ -192,14 +183,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             if self._is_setup
             else (0.0 if self.v_opt == "auto" else float(self.v_opt))
         )
-
-    @property
-    def backups_(self) -> int:
-        return self._model.backups
-
-    @property
-    def queued_(self) -> int:
-        return self._model.queued
 
     def _setup(self) -> None:
         n = len(self._scale)
