@@ -7,7 +7,6 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from avq._numba import Compiled, direct_call
 from avq._validate import PlanningSettings, check_bool, check_int, check_optional, check_planning_params, check_range
@@ -15,7 +14,6 @@ from avq.agents import _maze_loop
 from avq.agents._params import pack_params
 from avq.agents._spaces import (
     ScaledMetric,
-    check_box_discrete,
     load_scale_state,
     refresh_scale,
     scale_state,
@@ -157,14 +155,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.split_after = check_optional(check_int, "split_after", split_after, 1)
         self.fused = check_bool("fused", fused)
-        self._metric_params(scale, scale_warmup, obs_bounds)
-        super().__init__(env, seed)
-        self._resolve_metric(scale_factor)
+        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds)
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = horizon(self.env, self.gamma)
-
-    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        check_box_discrete("PlanningAVQ", obs_space, act_space, "there is nothing to quantize")
 
     # -- learned state ------------------------------------------------------------------
     @property
