@@ -315,7 +315,6 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         loop = Compiled(run_avq_maze)  # (after its first call, the loop itself: typing a record costs µs)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
                 maze,
                 mz,

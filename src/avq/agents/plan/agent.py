@@ -317,7 +317,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         loop = self._loops.setdefault(maze_types(mz), Compiled(run_plan_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
                 maze,
                 mz,

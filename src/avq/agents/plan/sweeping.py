@@ -234,7 +234,6 @@ class PrioritizedSweeping(PlanningSettings, ModelPlanner, PerStepAgent):
         loop = self._loops.setdefault(maze_types(mz), Compiled(run_ps_grid_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             row_of, keys = _maze_loop.grid_rows(self._index, maze.dynamics.walls.shape)
             T = np.array(
                 [self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)], dtype=np.int64
