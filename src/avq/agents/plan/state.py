@@ -19,7 +19,6 @@ from enum import auto
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
 
 from avq._numba import borrowed_record
 from avq.agents._params import ParamIndex
@@ -85,10 +84,9 @@ class PlanArrays(NamedTuple):
     e_xs: np.ndarray
 
 
-@njit(cache=True, inline="always")
-def borrowed_plan(ag: PlanArrays) -> PlanArrays:
-    """``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed_record`), for a fused loop's own use."""
-    return borrowed_record(ag)
+#: ``borrowed_plan(ag)``: ``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed_record`), for a
+#: fused loop's own use.
+borrowed_plan = borrowed_record
 
 
 #: The horizon of ``v_opt="auto"`` on a task with ``gamma = 1`` and no time limit.
