@@ -153,10 +153,8 @@ class BaseAgent:
         """A compiled loop over environment and agent, when the agent has one for this env.
 
         It is called as ``runner(max_steps, max_episodes, max_records)`` and returns
-        ``(steps, rows, in_episode)``, ``rows`` one per finished episode with the
-        columns of :data:`RECORD_FIELDS`; the loop draws from the agent's generator
-        ``_rng`` itself (its stream ``_draws`` is synced before each call). None: step
-        the environment from Python.
+        ``(steps, rows, in_episode)``, ``rows`` one per finished episode with the columns of :data:`RECORD_FIELDS`
+        (it draws from ``_rng``, ``_draws`` synced before each call). None: step the environment from Python.
         """
         return None
 
