@@ -1,4 +1,5 @@
-"""Files avq writes: whole files atomically, per-episode CSV rows by appending complete lines.
+"""Files avq writes: whole files atomically, per-episode CSV rows by appending complete lines; and the
+YAML files of a user's that it reads (:func:`read_yaml`).
 
 A write that fails raises :class:`WriteError`, which names the path the caller
 gave (never a temporary file), the cause and what to do; :func:`hold_directory`
@@ -23,6 +24,7 @@ __all__ = [
     "file_name_part",
     "ProgressLog",
     "WriteError",
+    "read_yaml",
 ]
 
 #: Names Windows refuses for a file, whatever its extension.
@@ -35,6 +37,23 @@ def file_name_part(text: str) -> str:
     no trailing dot and not a name Windows reserves (``"user/Nav3D-v0"`` -> ``"user-Nav3D-v0"``)."""
     name = "".join(c if (c.isascii() and c.isalnum()) or c in "-_." else "-" for c in text).rstrip(".") or "-"
     return f"{name}_" if name.split(".")[0].upper() in _RESERVED else name
+
+
+def read_yaml(path: str | os.PathLike, what: str) -> Any:
+    """The content of a user's YAML file (None for an empty one).
+
+    A ``ValueError`` names the file as ``what`` (``"config run.yml"``) when it cannot be read or is not
+    valid YAML, with the parser's message (which gives the line and column) on one line.
+    """
+    import yaml
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            return yaml.safe_load(f)  # from the stream, so that YAML errors name the file
+    except OSError as exc:
+        raise ValueError(f"cannot read {what}: {exc.strerror or exc}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{what} is not valid YAML: {' '.join(str(exc).split())}") from None
 
 
 def check_output_dir(out: Path, command: str, why: str = "") -> None:

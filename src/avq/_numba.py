@@ -10,7 +10,7 @@ from numba import types
 from numba.core.datamodel.models import ArrayModel
 from numba.extending import intrinsic, register_model
 
-__all__ = ["BorrowedArray", "Compiled", "borrowed", "direct_call"]
+__all__ = ["BorrowedArray", "Compiled", "borrowed", "borrowed_record", "direct_call"]
 
 
 class BorrowedArray(types.Array):
@@ -32,6 +32,24 @@ class _BorrowedArrayModel(ArrayModel):
         return []  # (no member is counted: the memory-info pointer is null)
 
 
+def _borrowed_type(arr: types.Array) -> BorrowedArray:
+    if isinstance(arr, BorrowedArray):
+        return arr
+    return BorrowedArray(arr.dtype, arr.ndim, arr.layout, not arr.mutable, arr.aligned)
+
+
+def _view(context, builder, arr: types.Array, out: BorrowedArray, value):
+    """The code of a borrowed view of the array ``value`` (of type ``arr``): its fields but the memory-info
+    block and the parent object, which are null."""
+    src = context.make_array(arr)(context, builder, value=value)
+    view = context.make_array(out)(context, builder)
+    for field in ("nitems", "itemsize", "data", "shape", "strides"):
+        setattr(view, field, getattr(src, field))
+    view.meminfo = context.get_constant_null(types.MemInfoPointer(arr.dtype))
+    view.parent = context.get_constant_null(types.pyobject)
+    return view._getvalue()
+
+
 def _borrowed(typingctx, arr):
     """A view of ``arr`` that does not own a reference to its memory, typed :class:`BorrowedArray`.
 
@@ -45,30 +63,43 @@ def _borrowed(typingctx, arr):
     """
     if not isinstance(arr, types.Array):
         return None
-    out = (
-        arr
-        if isinstance(arr, BorrowedArray)
-        else BorrowedArray(arr.dtype, arr.ndim, arr.layout, not arr.mutable, arr.aligned)
-    )
+    out = _borrowed_type(arr)
 
     def codegen(context, builder, signature, args):
-        src = context.make_array(arr)(context, builder, value=args[0])
-        view = context.make_array(out)(context, builder)
-        for field in ("nitems", "itemsize", "data", "shape", "strides"):
-            setattr(view, field, getattr(src, field))
-        view.meminfo = context.get_constant_null(types.MemInfoPointer(arr.dtype))
-        view.parent = context.get_constant_null(types.pyobject)
-        return view._getvalue()
+        return _view(context, builder, arr, out, args[0])
 
     return out(arr), codegen
 
 
-if TYPE_CHECKING:  # (what a compiled caller sees: one array in, a view of it out)
+def _borrowed_record(typingctx, rec):
+    """``rec``, a record (NamedTuple) of arrays and numbers, with every array a borrowed view
+    (:func:`borrowed`) and the numbers as they are: one function for every record of a fused loop."""
+    if not isinstance(rec, types.BaseNamedTuple) or not all(
+        isinstance(t, (types.Array, types.Number, types.Boolean)) for t in rec.types
+    ):
+        return None
+    fields = [_borrowed_type(t) if isinstance(t, types.Array) else t for t in rec.types]
+    out = types.BaseTuple.from_types(fields, rec.instance_class)
+
+    def codegen(context, builder, signature, args):
+        values = []
+        for k, (t, field) in enumerate(zip(rec.types, fields)):
+            value = builder.extract_value(args[0], k)
+            values.append(_view(context, builder, t, field, value) if isinstance(t, types.Array) else value)
+        return context.make_tuple(builder, out, values)
+
+    return out(rec), codegen
+
+
+if TYPE_CHECKING:  # (what a compiled caller sees: one array in, a view of it out; likewise a record)
 
     def borrowed(arr: Any) -> Any: ...
 
+    def borrowed_record(rec: Any) -> Any: ...
+
 else:
     borrowed = intrinsic(_borrowed)
+    borrowed_record = intrinsic(_borrowed_record)
 
 
 def direct_call(dispatcher: Any, args: tuple) -> Any:

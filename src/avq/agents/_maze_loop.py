@@ -98,37 +98,15 @@ def maze_arguments(maze: CompiledMaze) -> Maze:
     """The :class:`Maze` record of a compiled maze, for a fused loop."""
     d = maze.dynamics
     fixed = np.array(d.fixed_start if d.fixed_start is not None else (np.nan, np.nan), dtype=np.float64)
-    if isinstance(d, GridDynamics):
-        return Maze(
-            False,
-            d.walls,
-            float(d.goal[0]),
-            float(d.goal[1]),
-            d.starts,
-            fixed,
-            1.0,
-            0.0,
-            float(d.slip),
-            np.zeros((0, 2)),
-            0.0,
-            False,
-            int(maze.max_episode_steps),
-        )
-    return Maze(
-        True,
-        d.grid,
-        float(d.goal[0]),
-        float(d.goal[1]),
-        d.starts,
-        fixed,
-        float(d.move),
-        float(d.radius),
-        0.0,
-        d.sonar_directions,
-        float(d.sonar_range),
-        bool(d.observe_sonar),
-        int(maze.max_episode_steps),
-    )
+    if isinstance(d, GridDynamics):  # (moves of one square, no radius, no sonar)
+        robot, walls, move, radius, slip = False, d.walls, 1.0, 0.0, float(d.slip)
+        dirs, sonar_range, observe_sonar = np.zeros((0, 2)), 0.0, False
+    else:
+        robot, walls, move, radius, slip = True, d.grid, float(d.move), float(d.radius), 0.0
+        dirs, sonar_range, observe_sonar = d.sonar_directions, float(d.sonar_range), bool(d.observe_sonar)
+    gx, gy = float(d.goal[0]), float(d.goal[1])
+    steps = int(maze.max_episode_steps)
+    return Maze(robot, walls, gx, gy, d.starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar, steps)
 
 
 @njit(cache=True, inline="always")

@@ -11,6 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_int
+from avq.agents.base import BaseAgent
 
 __all__ = [
     "ScaledMetric",
@@ -321,30 +322,40 @@ def check_table_spaces(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
     return isinstance(obs_space, spaces.Discrete)
 
 
-class ScaledMetric:
-    """The scaled metric of an agent whose cells are vectors in observation units (``AVQSarsa``,
-    ``PlanningAVQ``): its parameters ``scale``, ``scale_factor`` and ``obs_bounds`` resolved once
-    (:func:`scale_setting`), and the count of observations from which ``scale="auto"`` estimates it."""
+class ScaledMetric(BaseAgent):
+    """The base of the agents whose cells are vectors in observation units (``AVQSarsa``, ``PlanningAVQ``):
+    their scaled metric, its parameters ``scale``, ``scale_factor`` and ``obs_bounds`` resolved once
+    (:func:`scale_setting`), the count of observations from which ``scale="auto"`` estimates it, and the
+    spaces they quantize (a 1-D ``Box`` of observations, ``Discrete`` actions)."""
 
-    env: gym.Env
     scale: Any
     scale_warmup: int
     obs_bounds: list[list[float] | None] | None
 
-    def _metric_params(self, scale: Any, scale_warmup: int, obs_bounds: Sequence[Any] | None) -> None:
-        """Before ``BaseAgent.__init__``: the metric's parameters stored (``scale`` as given), checked."""
+    def __init__(
+        self,
+        env: gym.Env | str,
+        seed: int | None,
+        scale: Any,
+        scale_warmup: int,
+        scale_factor: float | Sequence[float],
+        obs_bounds: Sequence[Any] | None,
+    ) -> None:
+        """Store and check the metric's parameters (``scale`` as given), make the environment
+        (``BaseAgent``), then resolve the scale in force and ``scale_factor`` as a number or a list. A
+        subclass checks its own parameters first."""
         self.scale = scale
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
-
-    def _resolve_metric(self, scale_factor: float | Sequence[float]) -> None:
-        """After ``BaseAgent.__init__`` (the env is made): the metric's scale in force and ``scale_factor``
-        as a number or a list."""
+        super().__init__(env, seed)
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
         self._scale, self._estimated, self._factor = scale_setting(
             self.env.observation_space, self.scale, self.obs_bounds, scale_factor
         )
         self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
+
+    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
+        check_box_discrete(type(self).__name__, obs_space, act_space, "there is nothing to quantize")
 
     @property
     def scale_(self) -> np.ndarray:

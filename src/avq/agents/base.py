@@ -153,8 +153,8 @@ class BaseAgent:
         """A compiled loop over environment and agent, when the agent has one for this env.
 
         It is called as ``runner(max_steps, max_episodes, max_records)`` and returns
-        ``(steps, rows, in_episode)``, ``rows`` one per finished episode with the
-        columns of :data:`RECORD_FIELDS`. None: step the environment from Python.
+        ``(steps, rows, in_episode)``, ``rows`` one per finished episode with the columns of :data:`RECORD_FIELDS`
+        (it draws from ``_rng``, ``_draws`` synced before each call). None: step the environment from Python.
         """
         return None
 
@@ -242,6 +242,7 @@ class BaseAgent:
         budget = min(
             call.episodes_left if call.episodes_left is not None else NEVER, call.callbacks.episodes_to_next_call(self)
         )
+        self._draws.sync()  # the loop draws from the agent's generator itself
         n, rows, self._in_episode = fused(
             call.steps_left if call.steps_left is not None else NEVER, budget, min(budget, 1 << 16)
         )

@@ -14,7 +14,7 @@ import os
 import shlex
 import sys
 
-from avq._io import WriteError
+from avq._io import WriteError, read_yaml
 
 __all__ = ["UsageError", "key_values", "cmd_reproduce", "cmd_train", "cmd_sweep", "cmd_evaluate", "cmd_plot"]
 
@@ -104,15 +104,10 @@ def key_values(pairs: list[str], flag: str) -> dict:
 
 
 def _load_config(path: str) -> dict:
-    import yaml
-
     try:
-        with open(path, encoding="utf-8") as f:
-            config = yaml.safe_load(f)
-    except OSError as exc:
-        raise UsageError(f"cannot read config {path}: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise UsageError(f"config {path} is not valid YAML: {' '.join(str(exc).split())}") from None
+        config = read_yaml(path, f"config {path}")
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     if config is None:
         config = {}
     if not isinstance(config, dict):

@@ -11,6 +11,7 @@ from gymnasium import spaces
 from numba import njit
 
 from avq.envs.layouts import Layout, LayoutSpec, check_start, layout_text, load_layout
+from avq.envs.maze_starts import MazeStarts
 from avq.envs.render import MazeRendering, grid_frame
 
 __all__ = ["GridMaze", "GridDynamics", "grid_move", "slipped", "NORTH", "EAST", "SOUTH", "WEST"]
@@ -98,7 +99,7 @@ def grid_move(walls: np.ndarray, x: int, y: int, a: int, gx: int, gy: int) -> tu
     return nx, ny, MOVE_REWARD, False, False
 
 
-class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
+class GridMaze(MazeStarts, MazeRendering, gym.Env[np.ndarray, np.int64]):
     """A robot moves on the free positions of a grid maze towards a goal.
 
     ## Description
@@ -187,14 +188,7 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         """Start an episode: at ``options["start"]``, a free non-goal ``(x, y)``, when given; else as ``start``
         says. A ``seed`` seeds ``self.np_random`` first (Gymnasium's rule). Returns the observation and the info."""
         super().reset(seed=seed)
-        start = None if options is None else options.get("start")
-        if start is not None:
-            self._x, self._y = self._checked_start(start)
-        elif self.start == "fixed":
-            self._x, self._y = self.layout.start  # type: ignore[misc]
-        else:
-            x, y = self._starts[self.np_random.integers(len(self._starts))]
-            self._x, self._y = int(x), int(y)
+        self._x, self._y = self._start_position(options)
         return self._obs(), self._info(False)
 
     def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -217,11 +211,6 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         """The robot's current ``(x, y)``."""
         return self._x, self._y
 
-    @property
-    def start(self) -> str:
-        """``"random"`` or ``"fixed"`` (read-only: the frozen :attr:`dynamics` hold it)."""
-        return self._start_mode
-
     def place(self, x: int, y: int) -> None:
         """Put the robot on square ``(x, y)`` without starting an episode.
 
@@ -229,6 +218,10 @@ class GridMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         ``step`` (avq's fused training): the episode goes on from there.
         """
         self._x, self._y = int(x), int(y)
+
+    def _random_start(self) -> tuple[int, int]:
+        x, y = self._starts[self.np_random.integers(len(self._starts))]
+        return int(x), int(y)
 
     def _checked_start(self, start: Any) -> tuple[int, int]:
         try:

@@ -19,6 +19,7 @@ from gymnasium import spaces
 
 from avq.envs.grid_maze import EAST, NORTH, SOUTH, WEST, action_index, read_only
 from avq.envs.layouts import Layout, LayoutSpec, check_start, layout_text, load_layout
+from avq.envs.maze_starts import MazeStarts
 from avq.envs.render import MazeRendering, robot_frame
 from avq.envs.robot_geometry import (
     EPS,
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 
-class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
+class RobotMaze(MazeStarts, MazeRendering, gym.Env[np.ndarray, np.int64]):
     """A disc-shaped robot with 16 sonars moves through a continuous maze towards a goal.
 
     ## Description
@@ -205,14 +206,7 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         ``start`` says. A ``seed`` seeds ``self.np_random`` first (Gymnasium's rule). Returns the observation and
         the info."""
         super().reset(seed=seed)
-        start = None if options is None else options.get("start")
-        if start is not None:
-            self._x, self._y = self._checked_position(start, "options['start']", allow_goal=False)
-        elif self.start == "fixed":
-            sx, sy = self.layout.start  # type: ignore[misc]
-            self._x, self._y = float(sx), float(sy)
-        else:
-            self._x, self._y = self._random_start()
+        self._x, self._y = self._start_position(options)
         self._steps = 0
         self._sense()
         return self._obs(), self._info(False)
@@ -282,13 +276,8 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
         """The robot's current centre ``(x, y)``."""
         return self._x, self._y
 
-    # The arguments, read-only: the frozen dynamics hold them, so that what ``step`` does and what a
-    # compiled loop does cannot drift apart.
-    @property
-    def start(self) -> str:
-        """``"random"`` or ``"fixed"``."""
-        return self._start_mode
-
+    # The arguments, read-only (and ``start``): the frozen dynamics hold them, so that what ``step`` does and
+    # what a compiled loop does cannot drift apart.
     radius = property(lambda self: self.dynamics.radius, doc="The robot's radius.")
     move = property(lambda self: self.dynamics.move, doc="The length of a move.")
     sonar_range = property(lambda self: self.dynamics.sonar_range, doc="The sonar's range.")
@@ -318,6 +307,9 @@ class RobotMaze(MazeRendering, gym.Env[np.ndarray, np.int64]):
 
     def _random_start(self) -> tuple[float, float]:
         return random_start(self.np_random, self._starts, self._grid, self.radius, self._gx, self._gy)
+
+    def _checked_start(self, start: Any) -> tuple[float, float]:
+        return self._checked_position(start, "options['start']", allow_goal=False)
 
     def _checked_position(self, pos: Any, what: str, allow_goal: bool) -> tuple[float, float]:
         try:

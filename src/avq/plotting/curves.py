@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -123,7 +124,27 @@ def learning_curves_figure(
     higher_is_better: bool = False,
     success: float | None = None,
 ):
-    """The figure of :func:`plot_learning_curves` (a Matplotlib ``Figure``; the caller closes it)."""
+    """Learning curves, one line per agent (or configuration): the mean over seeds and its spread, as a
+    Matplotlib ``Figure`` (the caller closes it; :func:`plot_learning_curves` writes it to a file).
+
+    The spread is the 95% t-interval of the mean with at least :data:`MIN_SEEDS_FOR_INTERVAL`
+    seeds for every curve, else each seed as a thin line. Seeds that never learned (:func:`never_learned`)
+    are left out of the mean and its spread and drawn each as a thin dashed line, and the legend says how
+    many there are. Curves are trailing means over
+    ``window`` trials (:func:`running_mean`; at most a tenth of the shortest run), drawn from
+    the first whole window. The legend goes below the panels.
+
+    Args:
+        curves: agent -> one array per seed (e.g. steps per trial).
+        cells: agent -> one array per seed of codebook size per trial (a second panel,
+            which names the agents of ``curves`` it leaves out).
+        window: Trailing-mean window.
+        ylabel: The label of the values' axis.
+        title: First line of the title; the second says what is drawn.
+        xlabel: The label of the trials' axis (and the unit of the window, in the title).
+        higher_is_better: Whether a higher value is better (a return; False: steps per trial).
+        success: The level a seed's last tenth must reach to count as having learned, where the task has one.
+    """
     plt = pyplot()
     from matplotlib.ticker import MaxNLocator
 
@@ -181,46 +202,11 @@ def learning_curves_figure(
     return fig
 
 
-def plot_learning_curves(
-    curves: Mapping[str, Sequence[np.ndarray]],
-    path: str | os.PathLike,
-    cells: Mapping[str, Sequence[np.ndarray]] | None = None,
-    window: int = 20,
-    ylabel: str = "steps per trial",
-    title: str | None = None,
-    xlabel: str = "trial",
-    higher_is_better: bool = False,
-    success: float | None = None,
-) -> Path:
-    """Learning curves, one line per agent (or configuration): the mean over seeds and its spread.
-
-    The spread is the 95% t-interval of the mean with at least :data:`MIN_SEEDS_FOR_INTERVAL`
-    seeds for every curve, else each seed as a thin line. Seeds that never learned (:func:`never_learned`)
-    are left out of the mean and its spread and drawn each as a thin dashed line, and the legend says how
-    many there are. Curves are trailing means over
-    ``window`` trials (:func:`running_mean`; at most a tenth of the shortest run), drawn from
-    the first whole window. The legend goes below the panels.
-
-    Args:
-        curves: agent -> one array per seed (e.g. steps per trial).
-        path: File to write.
-        cells: agent -> one array per seed of codebook size per trial (a second panel,
-            which names the agents of ``curves`` it leaves out).
-        window: Trailing-mean window.
-        title: First line of the title; the second says what is drawn.
-        higher_is_better: Whether a higher value is better (a return; False: steps per trial).
-        success: The level a seed's last tenth must reach to count as having learned, where the task has one.
-    """
-    fig = learning_curves_figure(
-        curves,
-        cells=cells,
-        window=window,
-        ylabel=ylabel,
-        title=title,
-        xlabel=xlabel,
-        higher_is_better=higher_is_better,
-        success=success,
-    )
+def plot_learning_curves(curves: Mapping[str, Sequence[np.ndarray]], path: str | os.PathLike, **options: Any) -> Path:
+    """:func:`learning_curves_figure` written to ``path`` (its suffix picks the format); ``options`` are that
+    function's keyword arguments (``cells``, ``window``, ``ylabel``, ``title``, ``xlabel``, ``higher_is_better``,
+    ``success``), with its defaults. Returns ``path``."""
+    fig = learning_curves_figure(curves, **options)
     out = save_figure(fig, path)
     pyplot().close(fig)
     return out

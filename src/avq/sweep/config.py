@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from avq._io import read_yaml
+
 __all__ = ["SweepConfig", "read_sweep_config", "spawn_seeds", "METRICS"]
 
 #: Final metrics of a trial, in ``results.csv`` order, and whether higher is better.
@@ -84,16 +86,8 @@ def read_sweep_config(source: str | os.PathLike | dict[str, Any]) -> SweepConfig
     if isinstance(source, dict):
         raw = dict(source)
     else:
-        import yaml
-
         where = str(source)
-        try:
-            with open(source, encoding="utf-8") as f:
-                raw = yaml.safe_load(f)  # from the stream, so that YAML errors name the file
-        except OSError as exc:
-            raise ValueError(f"cannot read {source}: {exc.strerror or exc}") from None
-        except yaml.YAMLError as exc:
-            raise ValueError(f"{source} is not valid YAML: {' '.join(str(exc).split())}") from None
+        raw = read_yaml(source, where)
         if not isinstance(raw, dict):
             raise ValueError(f"{source} must be a mapping of keys to values")
 

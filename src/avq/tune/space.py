@@ -12,6 +12,8 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
+from avq._io import read_yaml
+
 __all__ = ["Range", "read_space", "check_space", "agent_space"]
 
 _KEYS = {"low", "high", "log", "type", "choices"}
@@ -97,15 +99,7 @@ def parse_space(raw: Any, where: str) -> dict[str, Range]:
 
 def read_space(path: str | os.PathLike) -> dict[str, Range]:
     """A user's search space from a YAML file (the format of the defaults' ``search``)."""
-    import yaml
-
-    try:
-        with open(path, encoding="utf-8") as f:
-            raw = yaml.safe_load(f)
-    except OSError as exc:
-        raise ValueError(f"cannot read the search space {path}: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise ValueError(f"search space {path} is not valid YAML: {' '.join(str(exc).split())}") from None
+    raw = read_yaml(path, f"search space {path}")
     if isinstance(raw, dict) and set(raw) == {"search"}:
         raw = raw["search"]  # (a file holding the section as written in the defaults)
     return parse_space(raw, f"search space {path}")

@@ -29,21 +29,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import (
-    SarsaSettings,
-    check_bool,
-    check_int,
-    check_int_or_ints,
-    check_per_dimension,
-    check_range,
-    check_sarsa_params,
-)
-from avq.agents._per_step import PerStepAgent
-from avq.agents._spaces import normalize_obs_bounds, resolve_bounds
+from avq._validate import check_bool, check_int, check_range, check_sarsa_params
 from avq.agents.actions.codebook import merged_vector, plan_growth, plan_merges, uniform_actions
 from avq.agents.base import EpisodeRecord, episode_record
-from avq.agents.baselines.tiles import advance_tile_sarsa
-from avq.tilecoding import TileCoder
+from avq.agents.baselines.tiles import TileCodedSarsa
 
 __all__ = ["ActionCodebookSarsa"]
 
@@ -51,7 +40,7 @@ __all__ = ["ActionCodebookSarsa"]
 # -- the agent --------------------------------------------------------------------------------------------
 
 
-class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
+class ActionCodebookSarsa(TileCodedSarsa):
     """Linear Sarsa(λ) on tile-coded states over an adaptive codebook of continuous actions.
 
     The learner is :class:`avq.agents.TileSarsa`'s: ``Q(s, a) = sum_i w[i, a]``
@@ -131,15 +120,7 @@ class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
         self.d_min = check_range("d_min", d_min, 0.0, 1.0, low_open=True)
         self.rho = check_range("rho", rho, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
-        self.n_tilings = check_int("n_tilings", n_tilings, 1)
-        self.tiles_per_dim = check_int_or_ints("tiles_per_dim", tiles_per_dim)
-        self.iht_size = check_int("iht_size", iht_size, 1)
-        self.obs_bounds = normalize_obs_bounds(obs_bounds)
-        super().__init__(env, seed)
-        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-        check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
-        if self.iht_size < self.n_tilings:
-            raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
+        super().__init__(env, seed, n_tilings, tiles_per_dim, iht_size, obs_bounds)
         box = cast(spaces.Box, self.env.action_space)  # (a bounded Box: _check_spaces, in super().__init__)
         self._act_shape = tuple(box.shape)
         self._act_low = np.asarray(box.low, dtype=np.float64).ravel()
@@ -195,57 +176,34 @@ class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
     def weights_(self) -> np.ndarray:
         return self._w[:, : self._n].copy()
 
-    @property
-    def tile_coder_(self) -> TileCoder:
-        return self._coder
-
     def _to_env_units(self, units: np.ndarray) -> np.ndarray:
         return self._act_low + units * (self._act_high - self._act_low)
 
-    def q_values(self, observations: np.ndarray) -> np.ndarray:
-        """``Q(s, a)`` of every live action for each observation of a batch ``(b, n)``: ``(b, n_actions_)``.
-
-        A query: tiles never met count with their initial weight and are not added.
-        """
-        if not self._is_setup:
-            raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() first")
-        x = np.asarray(observations, dtype=np.float64).reshape(-1, self._low.shape[0])
-        w = self._w[:, : self._n]
-        w0 = np.full(self._n, self.q_init / self.n_tilings)
-        out = np.empty((len(x), self._n))
-        for b, xb in enumerate(x):
-            active = self._coder(xb, readonly=True)
-            out[b] = np.where(active[:, None] >= 0, w[np.maximum(active, 0)], w0).sum(axis=0)
-        return out
+    def _live_weights(self) -> np.ndarray:
+        """The weight columns of the live actions (``q_values`` gives ``(b, n_actions_)``)."""
+        return self._w[:, : self._n]
 
     def _setup(self) -> None:
-        bounds = list(zip(self._low.tolist(), self._high.tolist()))
-        self._coder = TileCoder(bounds, self.tiles_per_dim, self.n_tilings, self.iht_size)
+        self._setup_tiles(self._slots)
         self._w0 = self.q_init / self.n_tilings
-        self._w = np.full((self.iht_size, self._slots), self._w0)
-        self._e = np.zeros((self.iht_size, self._slots))
         self._units = np.zeros((self._slots, self._act_low.shape[0]))
         self._units[: len(self._grid)] = self._grid
         self._n = len(self._grid)
         self._refresh_env_actions()
-        self._step_size = self.alpha / self.n_tilings
         # The last `memory` visited states, as their active tiles (a ring buffer).
         self._recent = np.zeros((self.memory, self.n_tilings), dtype=np.int64)
         self._recent_count = 0
-        self._ep_active = np.zeros(self.n_tilings, dtype=np.int64)
-        self._ep_action = 0
-        self._ep_steps = 0
-        self._ep_return = 0.0
 
     def _refresh_env_actions(self) -> None:
         env_units = self._to_env_units(self._units[: self._n])
         self._env_actions = [v.reshape(self._act_shape).astype(np.float32) for v in env_units]
 
+    def _sent_actions(self) -> list[np.ndarray]:
+        return self._env_actions
+
     def _features(self, obs: Any) -> np.ndarray:
-        x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self._low.shape:
-            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
-        active = self._coder(x)
+        """The active tiles, remembered among the last ``memory`` visited states."""
+        active = super()._features(obs)
         self._recent[self._recent_count % self.memory] = active
         self._recent_count += 1
         return active
@@ -254,20 +212,7 @@ class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
         """``Q(s, .)`` of the live actions in the state with these active tiles."""
         return self._w.take(active, axis=0)[:, : self._n].sum(axis=0)
 
-    # -- the episode loop (Sutton & Barto 2018, §12.7; as TileSarsa) -----------------------------------
-    def _begin_episode(self, obs: np.ndarray) -> None:
-        self._e[: self._coder.n_used] = 0.0
-        self._ep_steps = 0
-        self._ep_return = 0.0
-        self._check_finite(obs, 0.0, 0)
-        self._ep_active = self._features(obs)
-        self._ep_action = self._decide(self._values(self._ep_active))
-
-    def _advance(self, max_steps: int) -> tuple[int, bool]:
-        # advance_tile_sarsa's annotation (agents/baselines/tiles.py) says an array; a list of arrays, one per
-        # action, does as well. To go when that annotation says so (warn_unused_ignores will tell).
-        return advance_tile_sarsa(self, max_steps, self._env_actions)  # type: ignore[arg-type]
-
+    # -- the episode loop (Sutton & Barto 2018, §12.7): TileCodedSarsa's ---------------------------------
     def _end_episode(self) -> EpisodeRecord:
         grown = merges = refused = 0
         if not self.fixed and self.num_episodes % self.adapt_every == 0:
@@ -325,9 +270,6 @@ class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
         return len(pairs)
 
     # -- acting ---------------------------------------------------------------------------------------
-    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
-        return self.q_values(obs).argmax(axis=1).astype(np.int64)
-
     def predict(
         self,
         observation: np.ndarray,
@@ -349,20 +291,14 @@ class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
     # -- saving ---------------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
-        meta["overflows"] = self._coder.overflows
         meta["recent_count"] = self._recent_count
-        arrays["weights"] = self._w.copy()
-        arrays["tiles"] = self._coder.tiles()
         arrays["action_units"] = self._units[: self._n].copy()
         arrays["recent"] = self._recent[: min(self._recent_count, self.memory)].copy()
         return meta, arrays
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        super()._load_state_dict(meta, arrays)
-        w, units, recent = arrays["weights"], arrays["action_units"], arrays["recent"]
+        units, recent = arrays["action_units"], arrays["recent"]
         count = int(meta["recent_count"])
-        if w.shape != self._w.shape:
-            raise ValueError(f"weights of shape {w.shape} do not fit ({self.iht_size}, {self._slots})")
         dims = self._units.shape[1]
         if units.ndim != 2 or units.shape[1] != dims or not 1 <= len(units) <= self._slots:
             raise ValueError(f"action_units of shape {units.shape} do not fit (1..{self._slots}, {dims})")
@@ -376,8 +312,7 @@ class ActionCodebookSarsa(SarsaSettings, PerStepAgent):
             )
         if recent.size and (recent.min() < 0 or recent.max() >= self.iht_size):
             raise ValueError("recent states name tiles outside the weight table")
-        self._coder.restore(arrays["tiles"], int(meta["overflows"]))
-        self._w[:] = w
+        super()._load_state_dict(meta, arrays)  # the counters, weights and tiles
         self._n = len(units)
         self._units[:] = 0.0
         self._units[: self._n] = units

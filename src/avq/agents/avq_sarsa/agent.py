@@ -7,7 +7,6 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from avq._numba import Compiled
 from avq._validate import (
@@ -24,7 +23,6 @@ from avq.agents._maze_loop import N_R
 from avq.agents._params import pack_params
 from avq.agents._spaces import (
     ScaledMetric,
-    check_box_discrete,
     load_scale_state,
     refresh_scale,
     scale_state,
@@ -239,14 +237,9 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.max_repeat = check_optional(check_int, "max_repeat", max_repeat, 1)
         self.fused = check_bool("fused", fused)
-        self._metric_params(scale, scale_warmup, obs_bounds)
-        super().__init__(env, seed)
-        self._resolve_metric(scale_factor)
+        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds)
 
     # -- spaces and scale ---------------------------------------------------------------
-    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        check_box_discrete("AVQSarsa", obs_space, act_space, "there is nothing to quantize")
-
     def _update_scale(self) -> None:
         """``scale="auto"``: the scale of each dimension without finite bounds becomes ``AUTO_SCALE_STDS``
         standard deviations of the observations counted (where that is > 0). The codebook keeps its vectors
@@ -322,7 +315,6 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         loop = Compiled(run_avq_maze)  # (after its first call, the loop itself: typing a record costs µs)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
                 maze,
                 mz,

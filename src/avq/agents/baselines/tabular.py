@@ -108,7 +108,6 @@ class TabularSarsa(TableSarsa):
         mz = _maze_loop.maze_arguments(maze)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             self._grow_table(shape[0] * shape[1])  # a row for every position, as _row would grow it
             row_of, keys = _maze_loop.grid_rows(self._index, shape)
             T = np.array(

@@ -1,4 +1,9 @@
-"""Linear Sarsa(λ) with tile coding (Sutton & Barto 2018, §9.5.4 and §12.7): a baseline for AVQ."""
+"""Linear Sarsa(λ) with tile coding (Sutton & Barto 2018, §9.5.4 and §12.7): a baseline for AVQ.
+
+:class:`TileCodedSarsa` is what every tile-coded agent shares (the tile coding, the weights and their
+traces, the step loop, saving); :class:`TileSarsa` is the baseline, and
+:class:`avq.agents.actions.ActionCodebookSarsa` the same learner over an adaptive codebook of actions.
+"""
 
 from __future__ import annotations
 
@@ -16,7 +21,7 @@ from avq.agents._td import sarsa_td_error, tile_step
 from avq.agents.base import EpisodeRecord, episode_record
 from avq.tilecoding import TileCoder
 
-__all__ = ["TileSarsa", "mark_traces"]
+__all__ = ["TileSarsa", "TileCodedSarsa", "mark_traces"]
 
 
 def mark_traces(e: np.ndarray, active: np.ndarray, a: int, replacing: bool) -> None:
@@ -40,36 +45,150 @@ def mark_traces(e: np.ndarray, active: np.ndarray, a: int, replacing: bool) -> N
         np.add.at(e[:, a], active[1:], 1.0)
 
 
-def advance_tile_sarsa(agent: Any, max_steps: int, env_actions: np.ndarray | None = None) -> tuple[int, bool]:
-    """The Sarsa(λ) steps of a tile-coded agent (``TileSarsa``, ``ActionCodebookSarsa``) for at most
-    ``max_steps`` steps; action ``a`` is sent to the environment as ``env_actions[a]`` if given."""
-    w, e, coder = agent._w, agent._e, agent._coder
-    rows = np.arange(w.shape[0])
-    replacing = agent.traces == "replacing"
-    decay = agent.gamma * agent.lam
+class TileCodedSarsa(SarsaSettings, PerStepAgent):
+    """What the tile-coded agents share (``TileSarsa``, ``ActionCodebookSarsa``): linear Sarsa(λ) with
+    traces on the features, one ε-greedy decision per primitive step, on the states of a ``TileCoder``.
 
-    def update(active: np.ndarray, a: int, r: float, obs: Any, terminated: bool) -> tuple[np.ndarray, int]:
-        q_sa = agent._values(active)[a]
-        if terminated:
-            active2, a2 = active, a
-            delta = sarsa_td_error(q_sa, r, agent.gamma, 0.0, True)
-        else:
-            active2 = agent._features(obs)
-            q2 = agent._values(active2)
-            a2 = agent._decide(q2)
-            delta = sarsa_td_error(q_sa, r, agent.gamma, q2[a2], False)
-        mark_traces(e, active, a, replacing)
-        # Rows are handed out in order of first use: rows past n_used have zero traces.
-        tile_step(w, e, rows, coder.n_used, int(active[0]), a, delta, agent._step_size, decay, replacing)
-        return active2, a2
+    ``Q(s, a) = sum_i w[i, a]`` over the active tiles ``i`` of ``s``: the weights ``_w`` and traces ``_e``
+    are ``(iht_size, columns)``, a column per action; a subclass may use fewer, its *live* actions
+    (:meth:`_live_weights`). It says in ``_setup`` how many columns to allocate (:meth:`_setup_tiles`).
+    """
 
-    agent._ep_active, agent._ep_action, n, ended = agent._sarsa_steps(
-        max_steps, agent._ep_active, agent._ep_action, update, env_actions
-    )
-    return n, ended
+    n_tilings: int
+    tiles_per_dim: int | list[int]
+    iht_size: int
+    obs_bounds: list[list[float] | None] | None
+
+    def __init__(
+        self,
+        env: gym.Env | str,
+        seed: int | None,
+        n_tilings: int,
+        tiles_per_dim: int | Sequence[int],
+        iht_size: int,
+        obs_bounds: Sequence[tuple[float, float] | None] | None,
+    ) -> None:
+        """Check and store the tile coding's parameters, make the environment (``BaseAgent``) and resolve
+        the bounds that are tiled. A subclass checks its own parameters (and ``check_sarsa_params``) first."""
+        self.n_tilings = check_int("n_tilings", n_tilings, 1)
+        self.tiles_per_dim = check_int_or_ints("tiles_per_dim", tiles_per_dim)
+        self.iht_size = check_int("iht_size", iht_size, 1)
+        self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        super().__init__(env, seed)
+        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
+        check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
+        if self.iht_size < self.n_tilings:
+            raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
+
+    @property
+    def tile_coder_(self) -> TileCoder:
+        return self._coder
+
+    def _live_weights(self) -> np.ndarray:
+        """The columns of ``_w`` of the actions in use (a view): all of them here."""
+        return self._w
+
+    def q_values(self, observations: np.ndarray) -> np.ndarray:
+        """``Q(s, a)`` of every action in use for each observation of a batch ``(b, n)``: ``(b, m)``.
+
+        A query: tiles never met count with their initial weight and are not added.
+        """
+        if not self._is_setup:
+            raise RuntimeError(f"{type(self).__name__} has not learned yet; call learn() first")
+        x = np.asarray(observations, dtype=np.float64).reshape(-1, self._low.shape[0])
+        w = self._live_weights()
+        out = np.empty((len(x), w.shape[1]))
+        w0 = np.full(w.shape[1], self.q_init / self.n_tilings)
+        for b, xb in enumerate(x):
+            active = self._coder(xb, readonly=True)
+            out[b] = np.where(active[:, None] >= 0, w[np.maximum(active, 0)], w0).sum(axis=0)
+        return out
+
+    def _setup_tiles(self, columns: int) -> None:
+        """The tile coder, the weights (at ``q_init / n_tilings``) and traces of ``columns`` actions, and
+        the episode's state."""
+        bounds = list(zip(self._low.tolist(), self._high.tolist()))
+        self._coder = TileCoder(bounds, self.tiles_per_dim, self.n_tilings, self.iht_size)
+        self._w = np.full((self.iht_size, columns), self.q_init / self.n_tilings)
+        self._e = np.zeros((self.iht_size, columns))
+        self._step_size = self.alpha / self.n_tilings
+        self._ep_active = np.zeros(self.n_tilings, dtype=np.int64)
+        self._ep_action = 0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+
+    def _features(self, obs: Any) -> np.ndarray:
+        """The active tiles of an observation (tiles met for the first time are added)."""
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self._low.shape:
+            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
+        return self._coder(x)
+
+    def _values(self, active: np.ndarray) -> np.ndarray:
+        """``Q(s, .)`` of the state with these active tiles (one summation order everywhere)."""
+        return self._w.take(active, axis=0).sum(axis=0)
+
+    def _sent_actions(self) -> Sequence[Any] | None:
+        """What the environment is sent for each action index, or None: the index itself."""
+        return None
+
+    # -- the episode loop (Sutton & Barto 2018, §12.7) ------------------------------------
+    def _begin_episode(self, obs: np.ndarray) -> None:
+        # Rows past n_used have never been marked, so clearing the used ones clears all.
+        self._e[: self._coder.n_used] = 0.0
+        self._ep_steps = 0
+        self._ep_return = 0.0
+        self._check_finite(obs, 0.0, 0)
+        self._ep_active = self._features(obs)
+        self._ep_action = self._decide(self._values(self._ep_active))
+
+    def _advance(self, max_steps: int) -> tuple[int, bool]:
+        w, e, coder = self._w, self._e, self._coder
+        rows = np.arange(w.shape[0])
+        replacing = self.traces == "replacing"
+        decay = self.gamma * self.lam
+
+        def update(active: np.ndarray, a: int, r: float, obs: Any, terminated: bool) -> tuple[np.ndarray, int]:
+            q_sa = self._values(active)[a]
+            if terminated:
+                active2, a2 = active, a
+                delta = sarsa_td_error(q_sa, r, self.gamma, 0.0, True)
+            else:
+                active2 = self._features(obs)
+                q2 = self._values(active2)
+                a2 = self._decide(q2)
+                delta = sarsa_td_error(q_sa, r, self.gamma, q2[a2], False)
+            mark_traces(e, active, a, replacing)
+            # Rows are handed out in order of first use: rows past n_used have zero traces.
+            tile_step(w, e, rows, coder.n_used, int(active[0]), a, delta, self._step_size, decay, replacing)
+            return active2, a2
+
+        self._ep_active, self._ep_action, n, ended = self._sarsa_steps(
+            max_steps, self._ep_active, self._ep_action, update, self._sent_actions()
+        )
+        return n, ended
+
+    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
+        return self.q_values(obs).argmax(axis=1).astype(np.int64)
+
+    # -- saving ---------------------------------------------------------------------------------
+    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        meta, arrays = super()._state_dict()
+        meta["overflows"] = self._coder.overflows
+        arrays["weights"] = self._w.copy()
+        arrays["tiles"] = self._coder.tiles()
+        return meta, arrays
+
+    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        super()._load_state_dict(meta, arrays)
+        w = arrays["weights"]
+        if w.shape != self._w.shape:
+            raise ValueError(f"weights of shape {w.shape} do not fit {self._w.shape}")
+        self._coder.restore(arrays["tiles"], int(meta["overflows"]))
+        self._w[:] = w
 
 
-class TileSarsa(SarsaSettings, PerStepAgent):
+class TileSarsa(TileCodedSarsa):
     """Linear Sarsa(λ) on tile-coded features, like Sutton & Barto's Mountain Car agent.
 
     The observation is tile-coded by a ``TileCoder`` (src/avq/tilecoding.py; ``n_tilings``
@@ -126,15 +245,7 @@ class TileSarsa(SarsaSettings, PerStepAgent):
         seed: int | None = None,
     ) -> None:
         check_sarsa_params(self, alpha, lam, gamma, epsilon, q_init, traces)
-        self.n_tilings = check_int("n_tilings", n_tilings, 1)
-        self.tiles_per_dim = check_int_or_ints("tiles_per_dim", tiles_per_dim)
-        self.iht_size = check_int("iht_size", iht_size, 1)
-        self.obs_bounds = normalize_obs_bounds(obs_bounds)
-        super().__init__(env, seed)
-        self._low, self._high = resolve_bounds(self.env.observation_space, self.obs_bounds)
-        check_per_dimension("tiles_per_dim", self.tiles_per_dim, self._low.shape[0])
-        if self.iht_size < self.n_tilings:
-            raise ValueError(f"iht_size must be at least n_tilings ({self.n_tilings}), not {self.iht_size}")
+        super().__init__(env, seed, n_tilings, tiles_per_dim, iht_size, obs_bounds)
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete("TileSarsa", obs_space, act_space, "there is nothing to tile-code")
@@ -148,63 +259,16 @@ class TileSarsa(SarsaSettings, PerStepAgent):
     def weights_(self) -> np.ndarray:
         return self._w.copy()
 
-    @property
-    def tile_coder_(self) -> TileCoder:
-        return self._coder
-
-    def q_values(self, observations: np.ndarray) -> np.ndarray:
-        """``Q(s, a)`` for every action of each observation of a batch ``(b, n)``: ``(b, m)``.
-
-        A query: tiles never met count with their initial weight and are not added.
-        """
-        if not self._is_setup:
-            raise RuntimeError("TileSarsa has not learned yet; call learn() first")
-        x = np.asarray(observations, dtype=np.float64).reshape(-1, self._low.shape[0])
-        out = np.empty((len(x), self.n_actions))
-        w0 = np.full(self.n_actions, self.q_init / self.n_tilings)
-        for b, xb in enumerate(x):
-            active = self._coder(xb, readonly=True)
-            rows = np.where(active[:, None] >= 0, self._w[np.maximum(active, 0)], w0)
-            out[b] = rows.sum(axis=0)
-        return out
-
     def _setup(self) -> None:
-        bounds = list(zip(self._low.tolist(), self._high.tolist()))
-        self._coder = TileCoder(bounds, self.tiles_per_dim, self.n_tilings, self.iht_size)
-        self._w = np.full((self.iht_size, self.n_actions), self.q_init / self.n_tilings)
-        self._e = np.zeros((self.iht_size, self.n_actions))
-        self._step_size = self.alpha / self.n_tilings
-        self._ep_active = np.zeros(self.n_tilings, dtype=np.int64)
-        self._ep_action = 0
-        self._ep_steps = 0
-        self._ep_return = 0.0
+        self._setup_tiles(self.n_actions)
         self._ep_used0 = 0
         self._ep_overflows0 = 0
 
-    def _features(self, obs: Any) -> np.ndarray:
-        x = np.asarray(obs, dtype=np.float64)
-        if x.shape != self._low.shape:
-            raise ValueError(f"observation has shape {x.shape}; the space says {self._low.shape}")
-        return self._coder(x)
-
-    def _values(self, active: np.ndarray) -> np.ndarray:
-        """``Q(s, .)`` of the state with these active tiles (one summation order everywhere)."""
-        return self._w.take(active, axis=0).sum(axis=0)
-
-    # -- the episode loop (Sutton & Barto 2018, §12.7) ------------------------------------
+    # -- the episode loop: as TileCodedSarsa, counting the tiles the episode adds --------
     def _begin_episode(self, obs: np.ndarray) -> None:
-        # Rows past n_used have never been marked, so clearing the used ones clears all.
-        self._e[: self._coder.n_used] = 0.0
-        self._ep_steps = 0
-        self._ep_return = 0.0
         self._ep_used0 = self._coder.n_used
         self._ep_overflows0 = self._coder.overflows
-        self._check_finite(obs, 0.0, 0)
-        self._ep_active = self._features(obs)
-        self._ep_action = self._decide(self._values(self._ep_active))
-
-    def _advance(self, max_steps: int) -> tuple[int, bool]:
-        return advance_tile_sarsa(self, max_steps)
+        super()._begin_episode(obs)
 
     def _end_episode(self) -> EpisodeRecord:
         coder = self._coder
@@ -215,22 +279,3 @@ class TileSarsa(SarsaSettings, PerStepAgent):
             coder.n_used - self._ep_used0,
             refused=coder.overflows - self._ep_overflows0,
         )
-
-    def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
-        return self.q_values(obs).argmax(axis=1).astype(np.int64)
-
-    # -- saving ---------------------------------------------------------------------------------
-    def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        meta, arrays = super()._state_dict()
-        meta["overflows"] = self._coder.overflows
-        arrays["weights"] = self.weights_
-        arrays["tiles"] = self._coder.tiles()
-        return meta, arrays
-
-    def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        super()._load_state_dict(meta, arrays)
-        w = arrays["weights"]
-        if w.shape != self._w.shape:
-            raise ValueError(f"weights of shape {w.shape} do not fit ({self.iht_size}, {self.n_actions})")
-        self._coder.restore(arrays["tiles"], int(meta["overflows"]))
-        self._w[:] = w

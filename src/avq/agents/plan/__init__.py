@@ -7,7 +7,7 @@
 - ``kernels.py``: its rules (the step, growth, splits) as compiled kernels; ``memory.py``: the remembered
   transitions the model follows when the cells change;
 - ``sweeping.py``: :class:`PrioritizedSweeping` (``tabular-ps``, ``grid-ps``), the baseline on
-  distinct observations or a fixed grid;
+  distinct observations or a fixed grid, and what both agents show of their model (``ModelPlanner``);
 - ``fused.py``: both agents' compiled training loops on the built-in mazes.
 """
 

@@ -7,7 +7,6 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from avq._numba import Compiled, direct_call
 from avq._validate import PlanningSettings, check_bool, check_int, check_optional, check_planning_params, check_range
@@ -15,12 +14,11 @@ from avq.agents import _maze_loop
 from avq.agents._params import pack_params
 from avq.agents._spaces import (
     ScaledMetric,
-    check_box_discrete,
     load_scale_state,
     refresh_scale,
     scale_state,
 )
-from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
+from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.plan import kernels as core, memory, model as _model
 from avq.agents.plan.fused import maze_types, run_plan_maze
 from avq.agents.plan.state import (
@@ -37,6 +35,7 @@ from avq.agents.plan.state import (
     PlanParam,
     horizon,
 )
+from avq.agents.plan.sweeping import ModelPlanner
 from avq.quantizer import Codebook
 
 __all__ = ["PlanningAVQ"]
@@ -45,7 +44,7 @@ __all__ = ["PlanningAVQ"]
 _GREW = {"S": 16, "mem_i": 3}
 
 
-class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
+class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
 
     It acts as AVQ does: one decision per cell of a growing codebook, repeated until the cell
@@ -181,14 +180,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         self.merge_same_action = check_bool("merge_same_action", merge_same_action)
         self.known_radius = check_optional(check_range, "known_radius", known_radius, 0.0, np.inf, high_open=True)
         self.fused = check_bool("fused", fused)
-        self._metric_params(scale, scale_warmup, obs_bounds)
-        super().__init__(env, seed)
-        self._resolve_metric(scale_factor)
+        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds)
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = horizon(self.env, self.gamma)
-
-    def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
-        check_box_discrete("PlanningAVQ", obs_space, act_space, "there is nothing to quantize")
 
     # -- learned state ------------------------------------------------------------------
     @property
@@ -200,16 +194,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         return self._ag.V[: self.n_cells].copy()
 
     @property
-    def q_(self) -> np.ndarray:
-        return self._model.a.Q[: self.n_cells].copy()
-
-    @property
-    def model_(self) -> _model.Model:
-        """The learned model of the cells and its planner's queue, for inspection (as
-        :attr:`avq.agents.sweeping.PrioritizedSweeping.model_`)."""
-        return self._model
-
-    @property
     def v_opt_(self) -> float:
         """What an untried decision is worth now (``v_opt``, or with ``"auto"`` its value so far)."""
         return (
@@ -217,14 +201,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
             if self._is_setup
             else (0.0 if self.v_opt == "auto" else float(self.v_opt))
         )
-
-    @property
-    def backups_(self) -> int:
-        return self._model.backups
-
-    @property
-    def queued_(self) -> int:
-        return self._model.queued
 
     def _setup(self) -> None:
         n = len(self._scale)
@@ -368,7 +344,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, BaseAgent):
         loop = self._loops.setdefault(maze_types(mz), Compiled(run_plan_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             steps, rows = _maze_loop.drive(
                 maze,
                 mz,

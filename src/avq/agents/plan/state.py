@@ -19,9 +19,8 @@ from enum import auto
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
 
-from avq._numba import borrowed
+from avq._numba import borrowed_record
 from avq.agents._params import ParamIndex
 
 __all__ = ["PlanArrays", "PlanParam", "PlanIntParam", "borrowed_plan"]
@@ -91,22 +90,9 @@ class PlanArrays(NamedTuple):
     e_xs: np.ndarray
 
 
-@njit(cache=True, inline="always")
-def borrowed_plan(ag: PlanArrays) -> PlanArrays:
-    """``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed`), for a fused loop's own use."""
-    return PlanArrays(
-        borrowed(ag.V),
-        borrowed(ag.inv_scale),
-        borrowed(ag.P),
-        borrowed(ag.IP),
-        borrowed(ag.S),
-        borrowed(ag.F),
-        borrowed(ag.xs),
-        borrowed(ag.mem_x),
-        borrowed(ag.mem_i),
-        borrowed(ag.mem_f),
-        borrowed(ag.e_xs),
-    )
+#: ``borrowed_plan(ag)``: ``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed_record`), for a
+#: fused loop's own use.
+borrowed_plan = borrowed_record
 
 
 #: The horizon of ``v_opt="auto"`` on a task with ``gamma = 1`` and no time limit.

@@ -1,5 +1,6 @@
 """Prioritized sweeping (Moore & Atkeson 1993) on one state per distinct observation: the model-based
-baseline ``tabular-ps``."""
+baseline ``tabular-ps``; and what every agent that plans over a learned model shows of it
+(:class:`ModelPlanner`)."""
 
 from __future__ import annotations
 
@@ -16,17 +17,45 @@ from avq._validate import PlanningSettings, check_bool, check_int, check_int_or_
 from avq.agents import _maze_loop
 from avq.agents._per_step import PerStepAgent
 from avq.agents._spaces import check_box_discrete, check_table_spaces, normalize_obs_bounds
-from avq.agents.base import EpisodeRecord, episode_record
+from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents.plan import model as _model
 from avq.agents.plan.fused import PSTable, maze_types, run_ps_grid_maze
+from avq.agents.plan.model import Model
 from avq.agents.plan.tabular import ps_step
 
-__all__ = ["PrioritizedSweeping"]
+__all__ = ["PrioritizedSweeping", "ModelPlanner"]
 
 
-class PrioritizedSweeping(PlanningSettings, PerStepAgent):
+class ModelPlanner(BaseAgent):
+    """What the agents that plan by prioritized sweeping over a learned :class:`~avq.agents.plan.model.Model`
+    (``_model``, whose states are the agent's ``n_cells`` states or cells) show of it: ``q_``, the planned
+    values, the model itself and the planner's counts."""
+
+    _model: Model
+
+    @property
+    def q_(self) -> np.ndarray:
+        return self._model.a.Q[: self.n_cells].copy()
+
+    @property
+    def model_(self) -> Model:
+        """The learned model and its planner's queue, for inspection: ``n_states``, ``backups``, ``queued``,
+        ``queue(s, priority)`` (queue a state for a backup) and ``sweep(budget)`` (back up at most ``budget``
+        queued states, highest priority first)."""
+        return self._model
+
+    @property
+    def backups_(self) -> int:
+        return self._model.backups
+
+    @property
+    def queued_(self) -> int:
+        return self._model.queued
+
+
+class PrioritizedSweeping(PlanningSettings, ModelPlanner, PerStepAgent):
     """Model-based RL: a learned model of every (observation, action) pair and prioritized sweeping over it.
 
     Each distinct observation is a state (as in ``tabular``). The model counts, for each pair, its
@@ -116,28 +145,9 @@ class PrioritizedSweeping(PlanningSettings, PerStepAgent):
         return self._model.n_states if self._is_setup else 0
 
     @property
-    def q_(self) -> np.ndarray:
-        return self._model.a.Q[: self.n_cells].copy()
-
-    @property
     def states_(self) -> np.ndarray:
         """The states' keys in the order first seen: observations ``(k, n)``, or ``(k, 1)`` bin or Discrete indices."""
         return np.array(self._keys, dtype=np.float64).reshape(len(self._keys), -1)
-
-    @property
-    def model_(self) -> _model.Model:
-        """The learned model and its planner's queue, for inspection: ``n_states``, ``backups``, ``queued``,
-        ``queue(s, priority)`` (queue a state for a backup) and ``sweep(budget)`` (back up at most ``budget``
-        queued states, highest priority first)."""
-        return self._model
-
-    @property
-    def backups_(self) -> int:
-        return self._model.backups
-
-    @property
-    def queued_(self) -> int:
-        return self._model.queued
 
     def _setup(self) -> None:
         self._model = _model.Model(self.n_actions, float(self.v_opt), self.v_min, self.known_after, self.tol)
@@ -225,7 +235,6 @@ class PrioritizedSweeping(PlanningSettings, PerStepAgent):
         loop = self._loops.setdefault(maze_types(mz), Compiled(run_ps_grid_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
-            self._draws.sync()  # the loop draws from the generator itself
             row_of, keys = _maze_loop.grid_rows(self._index, maze.dynamics.walls.shape)
             T = np.array(
                 [self._ep_row, self._ep_action, self._ep_steps, self._ep_new, int(self._in_episode)], dtype=np.int64
