@@ -10,8 +10,8 @@ At the end of an episode (``rho`` set, and the memory still holding every transi
 2. candidates are merged most similar first, each cell in one merge at most, unless the greedy decision of
    either half would not leave the merged cell in what was seen (:func:`avq.rules.merged_decision_leaves`:
    the paper gives a decision that cannot leave its cell the value ``chi``; here such a merge is refused);
-3. the first cell's vector moves to the midpoint and the second is removed (the cells after it move down
-   by one, their values with them);
+3. the first cell's vector moves to the midpoint and the second is removed, the cells after it moving down
+   (:func:`avq.quantizer.merge_kernel`), their values with them;
 4. the model is rebuilt from the memory (:func:`rebuild`): every remembered transition is recorded again
    between the cells its start and end observations now lie in, and a transition that ended only because
    the cell changed, whose two ends now lie in one cell, as a decision that goes on
@@ -30,7 +30,7 @@ from avq.agents.plan import model as _model
 from avq.agents.plan.memory import record_with_start, successor
 from avq.agents.plan.model import ModelArrays, settled
 from avq.agents.plan.state import GEOM, MEM_N, SIZE, PlanArrays, PlanIntParam, PlanParam
-from avq.quantizer import nearest_index
+from avq.quantizer import compact_rows, merge_kernel, nearest_index
 from avq.rules import mean_square_difference, merged_decision_leaves, same_greedy_action
 
 __all__ = ["MODEL_MERGE_PARAMS", "merge_pass", "rebuild", "nearest_cells", "exits_after_merge"]
@@ -123,8 +123,8 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
                     gap[i] = g
                     partner[i] = j
     order = np.argsort(gap, kind="mergesort")
-    gone = np.zeros(size, dtype=np.bool_)
     used = np.zeros(size, dtype=np.bool_)
+    pairs = np.empty((size // 2, 2), dtype=np.int64)
     merges = 0
     for q in range(size):
         i = order[q]
@@ -136,22 +136,15 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
             and merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[j]))), m.C[_model.KNOWN])
         ):
             continue
-        keep, drop = min(i, j), max(i, j)
-        for d in range(V.shape[1]):
-            V[keep, d] = (V[keep, d] + V[drop, d]) / 2.0
-        used[i] = used[j] = gone[drop] = True
+        used[i] = used[j] = True
+        pairs[merges, 0], pairs[merges, 1] = min(i, j), max(i, j)
         merges += 1
     if merges == 0:
         return 0
-    w = 0
-    for c in range(size):  # the cells left move down, their values with them
-        if gone[c]:
-            continue
-        if w != c:
-            V[w] = V[c]
-            Q[w] = Q[c]
-            Vm[w] = Vm[c]
-        w += 1
+    # The codebook's midpoints and the cells moving down (avq.quantizer), and the values with them.
+    mapping = merge_kernel(V, size, pairs[:merges])
+    compact_rows(Q, mapping)
+    w = compact_rows(Vm, mapping)
     S[SIZE] = w
     m.C[_model.N_STATES] = w
     S[GEOM] += 1
