@@ -93,9 +93,10 @@ def draw_arrows(ax, anchors: np.ndarray, directions: np.ndarray, length: float, 
 
 
 def maze_axes(ax, layout, image: np.ndarray, segments: list, fontsize: float | None):
-    """The maze's squares in the colours of ``image`` (:func:`cell_image`) and the cells' borders;
+    """The maze's squares in the colours of ``image`` (:func:`cell_image`), the cells' borders and the goal;
     integer ticks with ``fontsize``, none with None (faster to draw, for the animation). Returns the
-    squares (recolour with ``set_facecolor(image.reshape(-1, 4))``) and the border collection."""
+    squares (recolour with ``set_facecolor(image.reshape(-1, 4))``), the border collection and the goal's
+    marker."""
     from matplotlib.collections import LineCollection, PolyCollection
 
     h, w = layout.height, layout.width
@@ -105,18 +106,18 @@ def maze_axes(ax, layout, image: np.ndarray, segments: list, fontsize: float | N
     cells = ax.add_collection(PolyCollection(squares, facecolors=image.reshape(-1, 4), edgecolors="none"))
     borders = ax.add_collection(LineCollection(segments, colors="k", linewidths=1.2))
     gx, gy = layout.goal
-    ax.plot(gx, gy, "*", color="darkgreen", ms=18 if fontsize else 14, mec="k", zorder=4)
+    (goal,) = ax.plot(gx, gy, "*", color="darkgreen", ms=18 if fontsize else 14, mec="k", zorder=4)
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
     if fontsize is None:
         ax.set_axis_off()
-        return cells, borders
+        return cells, borders, goal
     ax.set_xticks(range(w))
     ax.set_yticks(range(h))
     ax.tick_params(labelsize=fontsize)
     ax.set_xlabel("x")
     ax.set_ylabel(Y_DOWN)
-    return cells, borders
+    return cells, borders, goal
 
 
 def _walk_label(walk: GreedyWalk) -> str:
