@@ -72,6 +72,10 @@ def cell_arrows(view: PartitionView) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return cells, view.squares[at].astype(float), ARROWS[view.actions[at]]
 
 
+#: The arrows' heads, in widths of their shafts (Matplotlib's quiver).
+_HEAD = {"headwidth": 3.2, "headlength": 3.0, "headaxislength": 2.7}
+
+
 def draw_arrows(ax, anchors: np.ndarray, directions: np.ndarray, length: float, width: float):
     """Arrows from the centres of their squares, in data units, so that they scale with the maze."""
     return ax.quiver(
@@ -84,12 +88,20 @@ def draw_arrows(ax, anchors: np.ndarray, directions: np.ndarray, length: float, 
         scale=1,
         units="xy",
         width=width,
-        headwidth=3.2,
-        headlength=3,
-        headaxislength=2.7,
+        **_HEAD,
         color="k",
         zorder=3,
     )
+
+
+def _arrow_marker(length: float, width: float) -> np.ndarray:
+    """The outline of an arrow of :func:`draw_arrows`, pointing right, as a marker (vertices about (0, 0)):
+    the legend's sample of the arrows drawn. (A marker of its own: the glyph ``$\\rightarrow$`` would
+    cost the figure Matplotlib's mathtext parser, about a tenth of a second to build.)"""
+    n = length / width  # (in widths of the shaft, as quiver's outline)
+    head, axis, half = _HEAD["headlength"], _HEAD["headaxislength"], _HEAD["headwidth"] / 2
+    outline = [(0, 0.5), (n - axis, 0.5), (n - head, half), (n, 0), (n - head, -half), (n - axis, -0.5), (0, -0.5)]
+    return np.array(outline) - [n / 2, 0]
 
 
 def maze_axes(ax, layout, image: np.ndarray, segments: list, fontsize: float | None):
@@ -200,12 +212,14 @@ def plot_partitions(
                     ha="center",
                     va="center",
                     zorder=4,
+                    in_layout=False,  # (inside the maze: the layout and the crop need not measure them)
                 )
-        draw_arrows(ax, anchors, directions, length=0.45 if numbered else 0.4, width=0.07 if numbered else 0.05)
+        length, width = (0.45, 0.07) if numbered else (0.4, 0.05)
+        draw_arrows(ax, anchors, directions, length=length, width=width)
         ax.plot(
             [],
             [],
-            marker=r"$\rightarrow$",
+            marker=_arrow_marker(length, width),
             color="k",
             ls="none",
             ms=12,
