@@ -139,3 +139,11 @@ def test_version_is_the_installed_distributions():
     except metadata.PackageNotFoundError:
         pytest.skip("avq is not installed")
     assert avq.__version__ == __version__ == installed
+
+
+def test_a_command_leaves_the_garbage_collectors_thresholds_as_they_were(capsys):
+    import gc
+
+    before = gc.get_threshold()
+    assert main(["reproduce", "--agents", ","]) == 2  # (a usage error: the command ran and ended)
+    assert gc.get_threshold() == before

@@ -282,6 +282,50 @@ def test_a_gif_frame_keeps_its_255_most_frequent_colours_and_takes_the_nearest_f
     assert np.array_equal(back[0, 521], kept[0])
 
 
+def test_a_frame_gives_the_same_palette_image_as_rgb_or_rgba_whatever_its_alpha_and_with_a_shared_table():
+    from avq.plotting.animation import _palette_image
+
+    rng = np.random.default_rng(0)
+    colours = rng.integers(0, 256, size=(300, 3))  # more than 255: some go to their nearest
+    rgb = colours[rng.integers(0, 300, size=(40, 50))].astype(np.uint8)
+    alpha = rng.integers(0, 256, size=(40, 50, 1)).astype(np.uint8)
+    want = _palette_image(Image.fromarray(rgb))
+    table = np.zeros(1 << 24, dtype=np.uint8)
+    _palette_image(np.roll(rgb, 7, axis=1), table)  # (another frame first, through the same table)
+    for frame in (rgb, np.concatenate([rgb, alpha], axis=2), np.concatenate([rgb, 255 + 0 * alpha], axis=2)):
+        got = _palette_image(frame, table)
+        assert got.getpalette() == want.getpalette() and np.array_equal(np.asarray(got), np.asarray(want))
+
+
+def _figure_with_what_a_crop_must_keep():
+    from avq.plotting._figure import pyplot
+
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(6, 3))
+    for ax in axes:
+        ax.plot([0, 1, 2], [2, 0, 1], label="a line")
+        ax.set_title("a title\non two lines")
+        ax.set_ylabel("a label")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15))  # (below the axes)
+    fig.tight_layout()
+    fig.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0))  # (below the figure, as the learning curves')
+    return plt, fig
+
+
+def test_a_png_is_saved_with_the_size_and_pixels_of_savefigs_tight_crop(tmp_path):
+    from avq.plotting._figure import save_figure
+
+    plt, fig = _figure_with_what_a_crop_must_keep()
+    fig.savefig(tmp_path / "savefig.png", dpi=150, bbox_inches="tight")
+    plt.close(fig)
+    plt, fig = _figure_with_what_a_crop_must_keep()
+    save_figure(fig, tmp_path / "ours.png")
+    plt.close(fig)
+    with Image.open(tmp_path / "savefig.png") as want, Image.open(tmp_path / "ours.png") as got:
+        assert got.mode == "RGB" and got.size == want.size and got.info["dpi"] == want.info["dpi"]
+        assert np.array_equal(np.asarray(got), np.asarray(want.convert("RGB")))
+
+
 def test_train_animate_writes_the_gif_on_both_mazes(tmp_path, capsys):
     out = tmp_path / "grid"
     assert (

@@ -45,31 +45,44 @@ def _colour_ids(views: Sequence[PartitionView]) -> list[np.ndarray]:
     return ids
 
 
-def _palette_image(frame):
-    """An RGB frame as a palette image for the GIF: its 255 most frequent colours, exactly, and every
-    other colour as the nearest of those (with a frame of flat cells, most pixels keep their colour;
-    about twice as fast as Pillow's median cut, which shifts more of them). The 256th entry is left
-    free: Pillow makes it transparent, for the pixels that a frame leaves as they were."""
+def _palette_image(frame, lut: np.ndarray | None = None):
+    """An RGB(A) frame (an ``(h, w, 3)`` or ``(h, w, 4)`` uint8 array, or a Pillow image) as a palette image
+    for the GIF: its 255 most frequent colours, exactly, and every other colour as the nearest of those
+    (with a frame of flat cells, most pixels keep their colour; about twice as fast as Pillow's median cut,
+    which shifts more of them). Alpha is ignored. The 256th entry is left free: Pillow makes it transparent,
+    for the pixels that a frame leaves as they were.
+
+    ``lut``: a ``(2**24,)`` uint8 scratch table that maps each colour of the frame to its entry (pass the
+    same one for every frame of an animation: only the colours a frame has are written and read).
+    """
     from PIL import Image
 
-    counts = frame.getcolors(1 << 16)
+    pixels = np.ascontiguousarray(frame)
+    if pixels.shape[2] == 3:  # (as RGBA, whose four bytes read as one little-endian number)
+        pixels = np.concatenate([pixels, np.full((*pixels.shape[:2], 1), 255, np.uint8)], axis=2)
+    counts = Image.frombuffer("RGBA", pixels.shape[1::-1], pixels, "raw", "RGBA", 0, 1).getcolors(1 << 16)
     if counts is None:  # (far more colours than a partition has)
-        return frame.convert("P", palette=Image.Palette.ADAPTIVE)
-    n = np.fromiter((c for c, _ in counts), np.int64, len(counts))
-    colours = np.array([c for _, c in counts], dtype=np.int64).reshape(-1, 3)
-    key = (colours[:, 0] << 16) | (colours[:, 1] << 8) | colours[:, 2]
+        return Image.fromarray(pixels[..., :3]).convert("P", palette=Image.Palette.ADAPTIVE)
+    found = np.array([c for _, c in counts], dtype=np.int64).reshape(-1, 4)[:, :3]
+    # (the same colour under another alpha counts once, as in the RGB frame)
+    key, at = np.unique((found[:, 0] << 16) | (found[:, 1] << 8) | found[:, 2], return_inverse=True)
+    n = np.bincount(at, weights=np.fromiter((c for c, _ in counts), np.float64, len(counts)))
+    colours = np.stack([key >> 16, (key >> 8) & 255, key & 255], axis=1)
     order = np.lexsort((key, -n))  # the most frequent first (then by colour)
     kept, others = order[:255], order[255:]
     palette = colours[kept]
     entry = np.empty(len(colours), dtype=np.uint8)  # each colour's palette entry: itself, or its nearest
     entry[kept] = np.arange(len(kept))
     if len(others):
-        d = sum((colours[others, k, None] - palette[None, :, k]) ** 2 for k in range(3))
+        near, pal = colours[others].astype(np.int32), palette.astype(np.int32)  # (int32: half the memory of int64)
+        d = (near[:, None, 0] - pal[None, :, 0]) ** 2
+        d += (near[:, None, 1] - pal[None, :, 1]) ** 2
+        d += (near[:, None, 2] - pal[None, :, 2]) ** 2
         entry[others] = d.argmin(axis=1)  # (squared distance in RGB; the first entry on a tie)
-    rgb = np.asarray(frame)
-    pixels = (rgb[..., 0].astype(np.int64) << 16) | (rgb[..., 1].astype(np.int64) << 8) | rgb[..., 2]
-    by_key = np.argsort(key)
-    image = Image.fromarray(entry[by_key[np.searchsorted(key[by_key], pixels)]], "P")
+    if lut is None:
+        lut = np.empty(1 << 24, dtype=np.uint8)
+    lut[colours[:, 0] | (colours[:, 1] << 8) | (colours[:, 2] << 16)] = entry
+    image = Image.fromarray(lut[pixels.view("<u4")[..., 0] & 0xFFFFFF], "P")
     image.putpalette(palette.astype(np.uint8).ravel().tolist())
     return image
 
@@ -92,14 +105,18 @@ def animate_partition(
     if not views:
         raise ValueError("no views to animate: record at least one episode")
     plt = pyplot()
-    from PIL import Image
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     layout = env.unwrapped.layout
     h, w = layout.height, layout.width
     palette = cell_palette(plt)
     ids = _colour_ids(views)
-    fig, ax = plt.subplots(figsize=(max(4.0, w * 0.45), max(3.5, h * 0.45) + 0.5))
-    cells, borders = maze_axes(
+    # Drawn on its own Agg canvas (no pyplot figure to close), at the GIF's resolution.
+    fig = Figure(figsize=(max(4.0, w * 0.45), max(3.5, h * 0.45) + 0.5), dpi=dpi)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    cells, borders, goal = maze_axes(
         ax,
         layout,
         cell_image(layout, views[0], palette[ids[0] % len(palette)]),
@@ -117,8 +134,13 @@ def animate_partition(
     text = ax.set_title(heading(views[0]), fontsize=11, y=1.0)
     # Room for a two-line title; no layout engine, which would lay the figure out again for every frame.
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=1 - 0.55 / fig.get_figheight())
-    width, height = fig.get_size_inches()
-    size = (int(width * dpi), int(height * dpi))
+    # What changes from frame to frame is drawn over a copy of the rest (Matplotlib's blitting), in the
+    # order a whole drawing takes (by zorder; the arrows are made anew for each frame).
+    for artist in (cells, borders, text, goal, dots):
+        artist.set_animated(True)
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    lut = np.empty(1 << 24, dtype=np.uint8)  # (see _palette_image)
     frames = []
     arrows = None
     for view, colour_ids in zip(views, ids):
@@ -131,12 +153,10 @@ def animate_partition(
         _, anchors, directions = cell_arrows(view)
         arrows = draw_arrows(ax, anchors, directions, length=0.45, width=0.09)
         text.set_text(heading(view))
-        buf = io.BytesIO()
-        fig.savefig(buf, format="rgba", dpi=dpi)
-        # (Pillow's annotation leaves out memoryview, which frombuffer reads without a copy)
-        frame = Image.frombuffer("RGBA", size, buf.getbuffer(), "raw", "RGBA", 0, 1).convert("RGB")  # type: ignore[arg-type]
-        frames.append(_palette_image(frame))
-    plt.close(fig)
+        canvas.restore_region(background)
+        for artist in (cells, borders, arrows, text, goal, dots):
+            ax.draw_artist(artist)
+        frames.append(_palette_image(np.asarray(canvas.buffer_rgba()), lut))
     gif = io.BytesIO()
     frames[0].save(gif, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
     out = Path(path)

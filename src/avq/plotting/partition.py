@@ -72,6 +72,10 @@ def cell_arrows(view: PartitionView) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return cells, view.squares[at].astype(float), ARROWS[view.actions[at]]
 
 
+#: The arrows' heads, in widths of their shafts (Matplotlib's quiver).
+_HEAD = {"headwidth": 3.2, "headlength": 3.0, "headaxislength": 2.7}
+
+
 def draw_arrows(ax, anchors: np.ndarray, directions: np.ndarray, length: float, width: float):
     """Arrows from the centres of their squares, in data units, so that they scale with the maze."""
     return ax.quiver(
@@ -84,18 +88,27 @@ def draw_arrows(ax, anchors: np.ndarray, directions: np.ndarray, length: float, 
         scale=1,
         units="xy",
         width=width,
-        headwidth=3.2,
-        headlength=3,
-        headaxislength=2.7,
+        **_HEAD,
         color="k",
         zorder=3,
     )
 
 
+def _arrow_marker(length: float, width: float) -> np.ndarray:
+    """The outline of an arrow of :func:`draw_arrows`, pointing right, as a marker (vertices about (0, 0)):
+    the legend's sample of the arrows drawn. (A marker of its own: the glyph ``$\\rightarrow$`` would
+    cost the figure Matplotlib's mathtext parser, about a tenth of a second to build.)"""
+    n = length / width  # (in widths of the shaft, as quiver's outline)
+    head, axis, half = _HEAD["headlength"], _HEAD["headaxislength"], _HEAD["headwidth"] / 2
+    outline = [(0, 0.5), (n - axis, 0.5), (n - head, half), (n, 0), (n - head, -half), (n - axis, -0.5), (0, -0.5)]
+    return np.array(outline) - [n / 2, 0]
+
+
 def maze_axes(ax, layout, image: np.ndarray, segments: list, fontsize: float | None):
-    """The maze's squares in the colours of ``image`` (:func:`cell_image`) and the cells' borders;
+    """The maze's squares in the colours of ``image`` (:func:`cell_image`), the cells' borders and the goal;
     integer ticks with ``fontsize``, none with None (faster to draw, for the animation). Returns the
-    squares (recolour with ``set_facecolor(image.reshape(-1, 4))``) and the border collection."""
+    squares (recolour with ``set_facecolor(image.reshape(-1, 4))``), the border collection and the goal's
+    marker."""
     from matplotlib.collections import LineCollection, PolyCollection
 
     h, w = layout.height, layout.width
@@ -105,18 +118,18 @@ def maze_axes(ax, layout, image: np.ndarray, segments: list, fontsize: float | N
     cells = ax.add_collection(PolyCollection(squares, facecolors=image.reshape(-1, 4), edgecolors="none"))
     borders = ax.add_collection(LineCollection(segments, colors="k", linewidths=1.2))
     gx, gy = layout.goal
-    ax.plot(gx, gy, "*", color="darkgreen", ms=18 if fontsize else 14, mec="k", zorder=4)
+    (goal,) = ax.plot(gx, gy, "*", color="darkgreen", ms=18 if fontsize else 14, mec="k", zorder=4)
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
     if fontsize is None:
         ax.set_axis_off()
-        return cells, borders
+        return cells, borders, goal
     ax.set_xticks(range(w))
     ax.set_yticks(range(h))
     ax.tick_params(labelsize=fontsize)
     ax.set_xlabel("x")
     ax.set_ylabel(Y_DOWN)
-    return cells, borders
+    return cells, borders, goal
 
 
 def _walk_label(walk: GreedyWalk) -> str:
@@ -199,12 +212,14 @@ def plot_partitions(
                     ha="center",
                     va="center",
                     zorder=4,
+                    in_layout=False,  # (inside the maze: the layout and the crop need not measure them)
                 )
-        draw_arrows(ax, anchors, directions, length=0.45 if numbered else 0.4, width=0.07 if numbered else 0.05)
+        length, width = (0.45, 0.07) if numbered else (0.4, 0.05)
+        draw_arrows(ax, anchors, directions, length=length, width=width)
         ax.plot(
             [],
             [],
-            marker=r"$\rightarrow$",
+            marker=_arrow_marker(length, width),
             color="k",
             ls="none",
             ms=12,
