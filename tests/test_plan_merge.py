@@ -169,6 +169,18 @@ def test_a_merge_whose_greedy_decision_would_never_leave_is_refused():
     assert merge.merge_pass(agent._ag, m) == 0 and agent.n_cells == 3
 
 
+def test_a_merge_that_the_outcome_split_would_undo_is_refused():
+    # East in the merged cell: from A (1, 1) it went on (outcome -2 + Q = -2 - 6 = -8), from B (3, 1) it ended at
+    # -4: a gap of 4 between starts 2 apart. With split_threshold 3 and no slope the split would cut the merged
+    # cell again: refused. With slope 1 the distance explains 2 of the 4: under 3, merged.
+    for threshold, slope, merges in ((10.0, None, 1), (3.0, None, 0), (3.0, 1.0, 1)):
+        agent = plan_agent(split_threshold=threshold, value_slope=slope)
+        three_cells(agent)
+        m = agent._model.a
+        assert merge.outcomes_agree(agent._ag, m, 0, 1, 1) == bool(merges)
+        assert merge.merge_pass(agent._ag, m) == merges
+
+
 def test_with_merge_same_action_cells_whose_greedy_actions_differ_do_not_merge():
     for same_action, merges in ((True, 0), (False, 1)):
         agent = plan_agent(rho=20.0, merge_same_action=same_action)

@@ -43,7 +43,7 @@ from numba import njit
 from avq.agents.plan import model as _model
 from avq.agents.plan.explore import decide
 from avq.agents.plan.memory import record_with_start, relocate, remember
-from avq.agents.plan.merge import merge_pass
+from avq.agents.plan.merge import merge_pass, value_slope
 from avq.agents.plan.model import CONT, ModelArrays, known as known_pair, settled
 from avq.agents.plan.state import (
     ACTION,
@@ -172,15 +172,6 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2) -
     c = _new_cell(ag, m, g2)
     relocate(ag, m, i, c)
     return c
-
-
-@njit(cache=True, inline="always")
-def value_slope(P, F) -> float:
-    """``L``: ``value_slope`` if given, else the mean return per unit of scaled distance travelled by the
-    transitions without a collision so far (0 before the first)."""
-    if P[PlanParam.VALUE_SLOPE] >= 0.0:
-        return P[PlanParam.VALUE_SLOPE]
-    return F[SLOPE_SUM] / F[SLOPE_N] if F[SLOPE_N] > 0 else 0.0
 
 
 @njit(cache=True, inline="always")

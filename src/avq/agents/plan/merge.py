@@ -29,11 +29,19 @@ from numba import njit
 from avq.agents.plan import model as _model
 from avq.agents.plan.memory import record_with_start, successor
 from avq.agents.plan.model import ModelArrays, settled
-from avq.agents.plan.state import GEOM, MEM_N, SIZE, PlanArrays, PlanIntParam, PlanParam
+from avq.agents.plan.state import GEOM, MEM_N, SIZE, SLOPE_N, SLOPE_SUM, PlanArrays, PlanIntParam, PlanParam
 from avq.quantizer import compact_rows, merge_kernel, nearest_index
-from avq.rules import mean_square_difference, merged_decision_leaves, same_greedy_action
+from avq.rules import mean_square_difference, merged_decision_leaves, outcome_disagrees, same_greedy_action
 
-__all__ = ["MODEL_MERGE_PARAMS", "merge_pass", "rebuild", "nearest_cells", "exits_after_merge"]
+__all__ = [
+    "MODEL_MERGE_PARAMS",
+    "merge_pass",
+    "rebuild",
+    "nearest_cells",
+    "exits_after_merge",
+    "outcomes_agree",
+    "value_slope",
+]
 
 #: The options of merging under a model that an agent without one does not have (``rho`` is ``AVQSarsa``'s too).
 MODEL_MERGE_PARAMS = ("merge_neighbours",)
@@ -64,6 +72,55 @@ def nearest_cells(V, size: int, i: int, k: int, inv_scale, out) -> int:
         dist[p] = s
         out[p] = j
     return found
+
+
+@njit(cache=True, inline="always")
+def value_slope(P, F) -> float:
+    """``L``: ``value_slope`` if given, else the mean return per unit of scaled distance travelled by the
+    transitions without a collision so far (0 before the first)."""
+    if P[PlanParam.VALUE_SLOPE] >= 0.0:
+        return P[PlanParam.VALUE_SLOPE]
+    return F[SLOPE_SUM] / F[SLOPE_N] if F[SLOPE_N] > 0 else 0.0
+
+
+@njit(cache=True)
+def outcomes_agree(ag: PlanArrays, m: ModelArrays, i: int, j: int, a: int) -> bool:
+    """Whether the outcome split (:mod:`avq.agents.plan.kernels`) would leave the merged cell of ``i`` and ``j``
+    whole for decision ``a``: no two of the successors of ``(i, a)`` and ``(j, a)`` have mean outcomes that differ
+    by more than ``split_threshold`` beyond what the distance between their mean starts explains (a successor in
+    ``i`` or ``j``, or going on, is worth ``Q``: the decision would go on). A merge that the split would undo
+    at once is refused."""
+    e_xs, inv_scale, n = ag.e_xs, ag.inv_scale, ag.e_xs.shape[1]
+    slope, threshold = value_slope(ag.P, ag.F), ag.P[PlanParam.SPLIT_THRESHOLD]
+    for c1 in (i, j):
+        e1 = m.head[c1, a]
+        while e1 >= 0:
+            k1 = m.e_n[e1]
+            if k1 > 0:
+                v1 = _outcome(m, e1, i, j, c1, a)
+                for c2 in (i, j):
+                    e2 = m.head[c2, a]
+                    while e2 >= 0:
+                        k2 = m.e_n[e2]
+                        if k2 > 0 and e2 != e1:
+                            dist = 0.0
+                            for d in range(n):
+                                z = (e_xs[e1, d] / k1 - e_xs[e2, d] / k2) * inv_scale[d]
+                                dist += z * z
+                            gap = abs(v1 - _outcome(m, e2, i, j, c2, a)) - slope * np.sqrt(dist)
+                            if outcome_disagrees(gap, threshold):
+                                return False
+                        e2 = m.e_next[e2]
+            e1 = m.e_next[e1]
+    return True
+
+
+@njit(cache=True, inline="always")
+def _outcome(m: ModelArrays, e: int, i: int, j: int, c: int, a: int) -> float:
+    """The mean outcome of edge ``e`` of ``(c, a)``, as it would be in the merged cell of ``i`` and ``j``."""
+    t = m.e_to[e]
+    later = 0.0 if t == -1 else (m.Q[c, a] if t in (i, j) or t < 0 else m.V[t])
+    return (m.e_r[e] + m.e_disc[e] * later) / m.e_n[e]
 
 
 @njit(cache=True)
@@ -134,6 +191,10 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
         if not (
             merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[i]))), m.C[_model.KNOWN])
             and merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[j]))), m.C[_model.KNOWN])
+        ):
+            continue
+        if IP[PlanIntParam.OUTCOME_SPLIT] and not (
+            outcomes_agree(ag, m, i, j, int(np.argmax(Q[i]))) and outcomes_agree(ag, m, i, j, int(np.argmax(Q[j])))
         ):
             continue
         used[i] = used[j] = True
