@@ -12,8 +12,8 @@ Variants (``--variants``, names below) are ``avq-plan`` on the maze with the ove
 chosen with ``--seeds`` (``0-29``: the seeds the variants were chosen on; ``100-199`` and ``200-299``: held out).
 
     python benchmarks/merging.py --protocol --seeds 0-29
-    python benchmarks/merging.py --protocol --seeds 200-299 --variants merge+radius
-    python benchmarks/merging.py --resolution --seeds 0-4
+    python benchmarks/merging.py --protocol --seeds 100-199 --variants no-merge merge+cycle+radius
+    python benchmarks/merging.py --resolution --seeds 0-4 --variants no-merge merge+cycle+radius
 """
 
 from __future__ import annotations
@@ -35,10 +35,11 @@ from avq.reproduce import train_maze_run  # noqa: E402
 #: Each variant's overrides of ``avq-plan``'s maze entry.
 VARIANTS = {
     "no-merge": {},
-    "merge": {"rho": 20.0, "merge_same_action": False},
-    "merge-same-action": {"rho": 20.0},
-    "merge+splits": {"rho": 20.0, "split_threshold": 2.0, "cycle_split": True},
-    "merge+radius": {"rho": 20.0, "split_threshold": 2.0, "cycle_split": True, "known_radius": 0.2},
+    "merge-profiles": {"rho": 25.0, "merge_same_action": False},
+    "merge": {"rho": 25.0},
+    "merge+cycle": {"rho": 25.0, "cycle_split": True},
+    "merge+radius": {"rho": 25.0, "known_radius": 0.3},
+    "merge+cycle+radius": {"rho": 25.0, "cycle_split": True, "known_radius": 0.3},
 }
 PROTOCOL_FIELDS = ("variant", "seed", "cells", "success", "path_ratio", "env_steps", "meets")
 RESOLUTION_FIELDS = ("variant", "k", "seed", "reached", "env_steps", "cells")
