@@ -96,7 +96,7 @@ def main() -> None:
         jobs = [delayed(protocol_row)(v, s) for v in args.variants for s in seeds]
         rows = Parallel(n_jobs=args.jobs)(jobs)
         write(Path(args.out) / f"merging_protocol_seeds{args.seeds}.csv", PROTOCOL_FIELDS, rows)
-        print(f"| variant | seeds meeting all three | cells median [range] | worst success | path ratio median, worst |")
+        print("| variant | seeds meeting all three | cells median [range] | worst success | path ratio median, worst |")
         print("|---|---|---|---|---|")
         for v in args.variants:
             rs = [r for r in rows if r["variant"] == v]
