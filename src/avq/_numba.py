@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING, Any
 
 import numba
 from numba import types
-from numba.core.datamodel.models import ArrayModel
+from numba.core.datamodel.models import ArrayModel, StructModel
 from numba.extending import intrinsic, register_model
 
-__all__ = ["BorrowedArray", "Compiled", "borrowed", "borrowed_record", "direct_call"]
+__all__ = ["BorrowedArray", "BorrowedGenerator", "Compiled", "borrowed", "borrowed_record", "direct_call"]
 
 
 class BorrowedArray(types.Array):
@@ -50,8 +50,31 @@ def _view(context, builder, arr: types.Array, out: BorrowedArray, value):
     return view._getvalue()
 
 
+class BorrowedGenerator(types.NumPyRandomGeneratorType):
+    """The type of a borrowed ``numpy.random.Generator`` (:func:`borrowed`): the same generator, drawn from by
+    the same compiled methods, whose reference the compiler does not count."""
+
+    def __init__(self) -> None:
+        super().__init__("borrowed NumPyRandomGeneratorType")
+        self.name = "borrowed NumPyRandomGeneratorType"  # (the base class names every generator type alike)
+
+
+@register_model(BorrowedGenerator)
+class _BorrowedGeneratorModel(StructModel):
+    def __init__(self, dmm, fe_type):
+        # A Generator's members, laid out as Numba lays them out, with the memory-info pointer as a plain
+        # pointer: nothing to count.
+        members = [
+            ("bit_generator", types.NumPyRandomBitGeneratorType("bit_generator")),
+            ("meminfo", types.voidptr),
+            ("parent", types.pyobject),
+        ]
+        super().__init__(dmm, fe_type, members)
+
+
 def _borrowed(typingctx, arr):
-    """A view of ``arr`` that does not own a reference to its memory, typed :class:`BorrowedArray`.
+    """A view of ``arr`` that does not own a reference to its memory, typed :class:`BorrowedArray`; or
+    the generator ``arr`` typed :class:`BorrowedGenerator`.
 
     Numba counts references to an array with atomic increments and decrements each
     time the array is handed on (and each time a record of arrays is, for every array
@@ -59,8 +82,21 @@ def _borrowed(typingctx, arr):
     counting costs more than the work. A borrowed view has no memory-info block and a
     type whose references the compiler does not count. The caller must keep ``arr``
     alive while the view is used: the fused loops borrow their arguments, which the
-    Python caller holds, and never return the views.
+    Python caller holds, and never return the views. A ``Generator`` is counted in the
+    same way (it holds a memory-info block) each time it is handed to a kernel that draws from it.
     """
+    if isinstance(arr, types.NumPyRandomGeneratorType):
+        gen = arr if isinstance(arr, BorrowedGenerator) else BorrowedGenerator()
+
+        def codegen_generator(context, builder, signature, args):
+            src = context.make_helper(builder, arr, value=args[0])
+            view = context.make_helper(builder, gen)
+            view.bit_generator = src.bit_generator
+            view.meminfo = context.get_constant_null(types.voidptr)
+            view.parent = src.parent
+            return view._getvalue()
+
+        return gen(arr), codegen_generator
     if not isinstance(arr, types.Array):
         return None
     out = _borrowed_type(arr)

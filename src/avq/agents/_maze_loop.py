@@ -29,13 +29,18 @@ from avq._numba import borrowed
 from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_geometry import random_start, robot_move, sonar_ranges
+from avq.quantizer import nearest_index
 
 __all__ = [
     "Maze",
     "plan",
     "maze_arguments",
+    "maze_types",
     "borrowed_maze",
     "borrowed_grid_maze",
+    "NearestCache",
+    "nearest_cache",
+    "cached_nearest",
     "drive",
     "grid_rows",
     "add_grid_rows",
@@ -109,6 +114,12 @@ def maze_arguments(maze: CompiledMaze) -> Maze:
     return Maze(robot, walls, gx, gy, d.starts, fixed, move, radius, slip, dirs, sonar_range, observe_sonar, steps)
 
 
+def maze_types(mz: Maze) -> tuple:
+    """What Numba's type of ``mz`` depends on, cheaply (its fields' Python types, and its arrays' dtypes,
+    dimensions and layout): a key under which an agent keeps the compiled loop it calls directly."""
+    return tuple((type(v), v.dtype, v.ndim, v.flags.c_contiguous) if isinstance(v, np.ndarray) else type(v) for v in mz)
+
+
 @njit(cache=True, inline="always")
 def _borrowed(mz: Maze, robot: bool) -> Maze:
     # (Numba's annotation of an @intrinsic's call keeps the typing context, which compiled callers do not pass)
@@ -118,7 +129,7 @@ def _borrowed(mz: Maze, robot: bool) -> Maze:
         mz.gx,
         mz.gy,
         borrowed(mz.starts),
-        mz.fixed,
+        borrowed(mz.fixed),
         mz.move,
         mz.radius,
         mz.slip,
@@ -141,6 +152,41 @@ def borrowed_grid_maze(mz: Maze) -> Maze:
     the compiler drops RobotMaze's branches (its inlined moves and starts) from the loop, as it did when the
     maze's fields were separate arguments."""
     return _borrowed(mz, False)
+
+
+class NearestCache(NamedTuple):
+    """A grid loop's memory of the nearest vector of each square (the nearest is searched once per square
+    while the codebook does not change, not at every step)."""
+
+    #: ``(h, w)`` the nearest vector of each square, -1 where not known.
+    cell: np.ndarray
+    #: ``(h, w)`` its squared scaled distance.
+    d2: np.ndarray
+    #: ``(1,)`` the geometry version (the agent's count of codebook changes) that they hold for.
+    geom: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def nearest_cache(mz: Maze) -> NearestCache:
+    """An empty :class:`NearestCache` for the maze ``mz`` (one square on RobotMaze, which does not use it)."""
+    shape = (1, 1) if mz.robot else mz.walls.shape
+    return NearestCache(np.full(shape, -1, dtype=np.int64), np.zeros(shape), np.full(1, -1, dtype=np.int64))
+
+
+@njit(cache=True, inline="always")
+def cached_nearest(cell, d2, seen, V, size: int, geom: int, x, inv_scale, pos) -> tuple[int, float]:
+    """:func:`~avq.quantizer.nearest_index` of the grid observation ``x`` (at square ``pos``) among the first
+    ``size`` vectors of ``V``, ``(index, squared distance)``, through a :class:`NearestCache` (its arrays
+    ``cell``, ``d2``, ``seen``: written here, so taken one by one), forgotten when ``geom`` changes."""
+    if seen[0] != geom:
+        for k in range(cell.shape[0]):
+            for q in range(cell.shape[1]):
+                cell[k, q] = -1
+        seen[0] = geom
+    iy, ix = int(pos[1]), int(pos[0])
+    if cell[iy, ix] < 0:
+        cell[iy, ix], d2[iy, ix] = nearest_index(V, size, x, inv_scale)
+    return cell[iy, ix], d2[iy, ix]
 
 
 def drive(

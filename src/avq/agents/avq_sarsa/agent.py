@@ -8,7 +8,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from avq._numba import Compiled
 from avq._validate import (
     SarsaSettings,
     check_bool,
@@ -28,7 +27,7 @@ from avq.agents._spaces import (
     scale_state,
 )
 from avq.agents.avq_sarsa import episode_end, generic, kernels as core
-from avq.agents.avq_sarsa.fused import run_avq_maze
+from avq.agents.avq_sarsa.fused import fused_loop
 from avq.agents.avq_sarsa.generic import GenericPath
 from avq.agents.base import EpisodeRecord, episode_record
 from avq.quantizer import Codebook
@@ -312,7 +311,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         if maze is None:
             return None
         mz = _maze_loop.maze_arguments(maze)
-        loop = Compiled(run_avq_maze)  # (after its first call, the loop itself: typing a record costs µs)
+        loop = fused_loop(mz)
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             steps, rows = _maze_loop.drive(

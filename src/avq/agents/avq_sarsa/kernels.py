@@ -189,19 +189,25 @@ def bonus_values(Q, born, P, j: int, out) -> None:
 
 
 @njit(cache=True, inline="always")
-def begin_episode(V, Q, E, born, act, S, F, par: Params, x) -> int:
-    """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
+def first_vector(V, Q, E, born, S, P, x) -> None:
+    """The paper (docs/explanation/paper.md#growing): the codebook starts with the very first observation
+    ``x`` (nothing happens once it has a vector)."""
     if S[SIZE] == 0:
-        # The paper (docs/explanation/paper.md#growing): the codebook starts with the very first observation.
         for d in range(x.shape[0]):
             V[0, d] = x[d]
         for b in range(Q.shape[1]):
-            Q[0, b] = par.P[FloatParam.Q_INIT]
+            Q[0, b] = P[FloatParam.Q_INIT]
             E[0, b] = 0.0
         born[0, 0] = 0
         born[0, 1] = 0
         S[SIZE] = 1
         S[GEOM] += 1
+
+
+@njit(cache=True, inline="always")
+def begin_episode_in(E, born, act, S, F, cell: int) -> int:
+    """Start an episode in ``cell``, the nearest cell of its first observation; return it. The caller then
+    picks the action."""
     clear_traces(E, act)
     S[EP_STEPS] = 0
     S[APPENDS] = 0
@@ -215,10 +221,17 @@ def begin_episode(V, Q, E, born, act, S, F, par: Params, x) -> int:
     F[DISC] = 1.0
     F[EP_RETURN] = 0.0
     F[PREV_R] = 0.0
-    cell, _ = nearest_index(V, S[SIZE], x, par.inv_scale)
     S[CELL] = cell
     born[cell, 1] = S[EPISODES] + 1
     return cell
+
+
+@njit(cache=True, inline="always")
+def begin_episode(V, Q, E, born, act, S, F, par: Params, x) -> int:
+    """Start an episode at observation ``x``; return its cell. The caller then picks the action."""
+    first_vector(V, Q, E, born, S, par.P, x)
+    cell, _ = nearest_index(V, S[SIZE], x, par.inv_scale)
+    return begin_episode_in(E, born, act, S, F, cell)
 
 
 @njit(cache=True)
@@ -237,12 +250,13 @@ def observe(V, Q, E, born, S, F, par: Params, st: Step) -> int:
         if not math.isfinite(x[d]):
             return NOT_FINITE
     j, d2 = nearest_index(V, S[SIZE], x, par.inv_scale)
-    return observe_at(V, Q, E, born, S, F, par, st, j, np.sqrt(d2))
+    return observe_at(V, Q, E, born, S, F, par, st, j, d2)
 
 
 @njit(cache=True, inline="always")
-def observe_at(V, Q, E, born, S, F, par: Params, st: Step, j: int, dist_j: float) -> int:
-    """:func:`observe` with the nearest vector ``j`` of ``st.x`` and its distance already known."""
+def observe_at(V, Q, E, born, S, F, par: Params, st: Step, j: int, d2_j: float) -> int:
+    """:func:`observe` with the nearest vector ``j`` of ``st.x`` and its squared distance already known (the
+    distance itself is taken only where a rule reads it, on a collision or a reward jump)."""
     P, IP, inv_scale = par
     x, r, collision, _, done = st
     i = S[CELL]
@@ -255,7 +269,7 @@ def observe_at(V, Q, E, born, S, F, par: Params, st: Step, j: int, dist_j: float
     if P[FloatParam.REWARD_TRIGGER] > 0.0:
         jump = reward_jump(r, F[PREV_R], S[EP_STEPS], P[FloatParam.REWARD_TRIGGER])
         F[PREV_R] = r
-        if jump and not collision and _may_append(dist_j, P, IP, S):
+        if jump and not collision and _may_append(np.sqrt(d2_j), P, IP, S):
             j = _append(V, Q, E, born, S, x, i)
     if P[FloatParam.ADAPT_RATE] > 0.0 and not collision:
         # Beyond the paper: move the vector of x's cell toward x (online k-means, rate adapt_rate).
@@ -268,6 +282,7 @@ def observe_at(V, Q, E, born, S, F, par: Params, st: Step, j: int, dist_j: float
         return -1
     if collision:
         # The paper (docs/explanation/paper.md#growing), collision rule (avq.rules.collision_rule).
+        dist_j = np.sqrt(d2_j)
         dist_i = dist_j if j == i else scaled_distance(V, i, x, inv_scale)
         outcome = collision_rule(dist_i, dist_j, P[FloatParam.D_MIN])
         if (
