@@ -162,31 +162,56 @@ class NearestCache(NamedTuple):
     cell: np.ndarray
     #: ``(h, w)`` its squared scaled distance.
     d2: np.ndarray
-    #: ``(1,)`` the geometry version (the agent's count of codebook changes) that they hold for.
-    geom: np.ndarray
+    #: ``(2,)`` the geometry version (the agent's count of codebook changes) and the codebook's size that they
+    #: hold for.
+    seen: np.ndarray
 
 
 @njit(cache=True, inline="always")
 def nearest_cache(mz: Maze) -> NearestCache:
     """An empty :class:`NearestCache` for the maze ``mz`` (one square on RobotMaze, which does not use it)."""
     shape = (1, 1) if mz.robot else mz.walls.shape
-    return NearestCache(np.full(shape, -1, dtype=np.int64), np.zeros(shape), np.full(1, -1, dtype=np.int64))
+    return NearestCache(np.full(shape, -1, dtype=np.int64), np.zeros(shape), np.full(2, -1, dtype=np.int64))
 
 
 @njit(cache=True, inline="always")
 def cached_nearest(cell, d2, seen, V, size: int, geom: int, x, inv_scale, pos) -> tuple[int, float]:
     """:func:`~avq.quantizer.nearest_index` of the grid observation ``x`` (at square ``pos``) among the first
     ``size`` vectors of ``V``, ``(index, squared distance)``, through a :class:`NearestCache` (its arrays
-    ``cell``, ``d2``, ``seen``: written here, so taken one by one), forgotten when ``geom`` changes."""
+    ``cell``, ``d2``, ``seen``: written here, so taken one by one). When the geometry version ``geom`` has
+    changed, the cache is emptied, unless the one change was an append (the version and the size each one
+    more), which only the new vector may win, as :func:`~avq.quantizer.nearest_index` would find it."""
     if seen[0] != geom:
-        for k in range(cell.shape[0]):
-            for q in range(cell.shape[1]):
-                cell[k, q] = -1
+        if seen[0] + 1 == geom and seen[1] + 1 == size:
+            _nearest_appended(cell, d2, V, size - 1, inv_scale)
+        else:
+            for k in range(cell.shape[0]):
+                for q in range(cell.shape[1]):
+                    cell[k, q] = -1
         seen[0] = geom
+        seen[1] = size
     iy, ix = int(pos[1]), int(pos[0])
     if cell[iy, ix] < 0:
         cell[iy, ix], d2[iy, ix] = nearest_index(V, size, x, inv_scale)
     return cell[iy, ix], d2[iy, ix]
+
+
+@njit(cache=True)
+def _nearest_appended(cell, d2, V, c: int, inv_scale) -> None:
+    """Vector ``c``, just appended (the last), into a grid's :class:`NearestCache`: it becomes the nearest of
+    each known square ``(x, y)`` strictly nearer to it, ties going to the lower index, with the very arithmetic
+    of :func:`~avq.quantizer.nearest_index`."""
+    for k in range(cell.shape[0]):
+        for q in range(cell.shape[1]):
+            if cell[k, q] < 0:
+                continue
+            zx = (V[c, 0] - float(q)) * inv_scale[0]
+            s = 0.0 + zx * zx
+            zy = (V[c, 1] - float(k)) * inv_scale[1]
+            s += zy * zy
+            if s < d2[k, q]:
+                cell[k, q] = c
+                d2[k, q] = s
 
 
 def drive(

@@ -44,6 +44,17 @@ def _shrunk(Q, E, act, S, size: int, new_size: int) -> None:
     S[GEOM] += 1
 
 
+@njit(cache=True, inline="always")
+def _mergeable(Q, born, P, IP, S, i: int, j: int) -> bool:
+    """Whether the pair of cells ``(i, j)`` merges: the paper's criterion 2 (docs/explanation/paper.md#merging)
+    and the guards beyond the paper (``merge_age``, ``merge_same_action``)."""
+    if not similar_profiles(Q[i], Q[j], P[FloatParam.RHO]):
+        return False
+    if not old_enough(S[EPISODES], born[i, 0], born[j, 0], IP[IntParam.MERGE_AGE]):
+        return False
+    return not (IP[IntParam.MERGE_SAME_ACTION] and not same_greedy_action(Q[i], Q[j]))
+
+
 @njit(cache=True)
 def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
     """The paper (docs/explanation/paper.md#merging): merge every mutually nearest pair whose profiles differ by less than rho.
@@ -62,21 +73,16 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
         pc[0, 1] = found.shape[0]
         pc[1 : 1 + found.shape[0], :] = found
     pairs = pc[1 : 1 + pc[0, 1]]
-    keep = np.zeros(pairs.shape[0], dtype=np.bool_)
+    make_room = IP[IntParam.MAKE_ROOM] and S[REFUSED] > 0
     n_keep = 0
     for k in range(pairs.shape[0]):
-        i, j = pairs[k, 0], pairs[k, 1]
-        if not similar_profiles(
-            Q[i], Q[j], P[FloatParam.RHO]
-        ):  # The paper (docs/explanation/paper.md#merging), criterion 2
-            continue
-        if not old_enough(S[EPISODES], born[i, 0], born[j, 0], IP[IntParam.MERGE_AGE]):
-            continue
-        if IP[IntParam.MERGE_SAME_ACTION] and not same_greedy_action(Q[i], Q[j]):
-            continue
-        keep[k] = True
-        n_keep += 1
-    if IP[IntParam.MAKE_ROOM] and S[REFUSED] > 0:
+        n_keep += _mergeable(Q, born, P, IP, S, pairs[k, 0], pairs[k, 1])
+    if n_keep == 0 and not make_room:
+        return 0  # (most passes: no allocation)
+    keep = np.zeros(pairs.shape[0], dtype=np.bool_)
+    for k in range(pairs.shape[0]):
+        keep[k] = _mergeable(Q, born, P, IP, S, pairs[k, 0], pairs[k, 1])  # (the same answers again)
+    if make_room:
         # Beyond the paper: the budget refused growth this episode; make room by merging as many more
         # pairs, those with the same greedy action and the most similar profiles first.
         extra = min(S[REFUSED], pairs.shape[0] - n_keep)

@@ -103,7 +103,7 @@ def _train(cells: Cells, work: Work, rng, env_rng, mz, pos, budget_steps, budget
         borrowed(cells.F),
     )
     x, scr, sonar = borrowed(work.x), borrowed(work.scr), borrowed(work.sonar)
-    near, near_d2, near_geom = borrowed(work.near.cell), borrowed(work.near.d2), borrowed(work.near.geom)
+    near, near_d2, near_seen = borrowed(work.near.cell), borrowed(work.near.d2), borrowed(work.near.seen)
     rng, env_rng = borrowed(rng), borrowed(env_rng)
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     par = Params(P, IP, inv_scale)  # (read only: the kernels write the arrays they take one by one)
@@ -124,7 +124,7 @@ def _train(cells: Cells, work: Work, rng, env_rng, mz, pos, budget_steps, budget
             if mz.robot:
                 cell, _ = nearest_index(V, S[SIZE], x, inv_scale)
             else:
-                cell, _ = cached_nearest(near, near_d2, near_geom, V, S[SIZE], S[GEOM], x, inv_scale, pos)
+                cell, _ = cached_nearest(near, near_d2, near_seen, V, S[SIZE], S[GEOM], x, inv_scale, pos)
             begin_episode_in(E, born, act, S, F, cell)
             S[ACTION] = decide(rng, Q, born, P, cell, scr)
         if steps >= budget_steps:
@@ -140,7 +140,7 @@ def _train(cells: Cells, work: Work, rng, env_rng, mz, pos, budget_steps, budget
         if mz.robot:
             j = observe(V, Q, E, born, S, F, par, st)
         else:
-            c, d2 = cached_nearest(near, near_d2, near_geom, V, S[SIZE], S[GEOM], x, inv_scale, pos)
+            c, d2 = cached_nearest(near, near_d2, near_seen, V, S[SIZE], S[GEOM], x, inv_scale, pos)
             j = observe_at(V, Q, E, born, S, F, par, st, c, d2)
         if j < 0:
             continue
