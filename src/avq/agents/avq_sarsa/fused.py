@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from avq._numba import Compiled, borrowed
+from avq._numba import Compiled, NoAliasPipeline, borrowed
 from avq.agents._maze_loop import (
     DONE,
     NEED_CAPACITY,
@@ -84,9 +84,11 @@ def fused_loop(mz) -> Compiled:
     return _LOOPS.setdefault(maze_types(mz), Compiled(run_avq_maze))
 
 
-@njit(cache=True)
+@njit(cache=True, pipeline_class=NoAliasPipeline)
 def _train(cells: Cells, work: Work, rng, env_rng, mz, pos, budget_steps, budget_episodes, rec):
-    """:func:`run_avq_maze`'s loop, on borrowed views of everything it is given."""
+    """:func:`run_avq_maze`'s loop, on borrowed views of everything it is given. Compiled with the arguments'
+    arrays declared not to overlap (:class:`~avq._numba.NoAliasPipeline`): the agent's arrays are disjoint views
+    of its buffers, and the other arrays are arrays of their own."""
     # (Taken out of the records once: the kernels take the arrays they write one by one. Under Numba 0.68 an
     # inlined kernel that writes through a record argument can lose those writes in this loop.)
     V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
