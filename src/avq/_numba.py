@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numba
 from numba import types
+from numba.core import cgutils
 from numba.core.compiler import CompilerBase, DefaultPassBuilder
 from numba.core.datamodel.models import ArrayModel, StructModel
 from numba.extending import intrinsic, register_model
@@ -18,6 +19,7 @@ __all__ = [
     "NoAliasPipeline",
     "borrowed",
     "borrowed_record",
+    "row",
     "direct_call",
 ]
 
@@ -136,15 +138,45 @@ def _borrowed_record(typingctx, rec):
     return out(rec), codegen
 
 
-if TYPE_CHECKING:  # (what a compiled caller sees: one array in, a view of it out; likewise a record)
+def _row(typingctx, arr, i):
+    """Row ``i`` (``0 <= i < arr.shape[0]``, unchecked, as indexing is) of the C-contiguous 2-D array ``arr``,
+    as a borrowed view (:class:`BorrowedArray`): ``arr[i]`` without the reference counting of the view,
+    which a loop that hands rows to the rules (``similar_profiles(Q[i], Q[j], rho)``) pays at every pair."""
+    if not (isinstance(arr, types.Array) and arr.ndim == 2 and arr.layout == "C" and isinstance(i, types.Integer)):
+        return None
+    out = BorrowedArray(arr.dtype, 1, "C", not arr.mutable, arr.aligned)
+
+    def codegen(context, builder, signature, args):
+        src = context.make_array(arr)(context, builder, value=args[0])
+        n = cgutils.unpack_tuple(builder, src.shape)[1]
+        stride = cgutils.unpack_tuple(builder, src.strides)[1]
+        k = context.cast(builder, args[1], signature.args[1], types.intp)
+        view = context.make_array(out)(context, builder)
+        context.populate_array(
+            view,
+            data=cgutils.gep_inbounds(builder, src.data, builder.mul(k, n)),
+            shape=cgutils.pack_array(builder, [n]),
+            strides=cgutils.pack_array(builder, [stride]),
+            itemsize=src.itemsize,
+            meminfo=None,
+        )
+        return view._getvalue()
+
+    return out(arr, i), codegen
+
+
+if TYPE_CHECKING:  # (what a compiled caller sees: one array in, a view of it out; likewise a record, a row)
 
     def borrowed(arr: Any) -> Any: ...
 
     def borrowed_record(rec: Any) -> Any: ...
 
+    def row(arr: Any, i: int) -> Any: ...
+
 else:
     borrowed = intrinsic(_borrowed)
     borrowed_record = intrinsic(_borrowed_record)
+    row = intrinsic(_row)
 
 
 class NoAliasPipeline(CompilerBase):

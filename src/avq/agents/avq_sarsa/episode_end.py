@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from avq._numba import row
 from avq.agents._maze_loop import R_APPENDS, R_CELLS, R_DECISIONS, R_MERGES, R_REFUSED, R_RETURN, R_STEPS
 from avq.agents.avq_sarsa.kernels import (
     APPENDS,
@@ -48,11 +49,11 @@ def _shrunk(Q, E, act, S, size: int, new_size: int) -> None:
 def _mergeable(Q, born, P, IP, S, i: int, j: int) -> bool:
     """Whether the pair of cells ``(i, j)`` merges: the paper's criterion 2 (docs/explanation/paper.md#merging)
     and the guards beyond the paper (``merge_age``, ``merge_same_action``)."""
-    if not similar_profiles(Q[i], Q[j], P[FloatParam.RHO]):
+    if not similar_profiles(row(Q, i), row(Q, j), P[FloatParam.RHO]):
         return False
     if not old_enough(S[EPISODES], born[i, 0], born[j, 0], IP[IntParam.MERGE_AGE]):
         return False
-    return not (IP[IntParam.MERGE_SAME_ACTION] and not same_greedy_action(Q[i], Q[j]))
+    return not (IP[IntParam.MERGE_SAME_ACTION] and not same_greedy_action(row(Q, i), row(Q, j)))
 
 
 @njit(cache=True)
@@ -91,9 +92,9 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             best_d = np.inf
             for k in range(pairs.shape[0]):
                 i, j = pairs[k, 0], pairs[k, 1]
-                if keep[k] or not same_greedy_action(Q[i], Q[j]):
+                if keep[k] or not same_greedy_action(row(Q, i), row(Q, j)):
                     continue
-                d = mean_square_difference(Q[i], Q[j])
+                d = mean_square_difference(row(Q, i), row(Q, j))
                 if d < best_d:
                     best, best_d = k, d
             if best < 0:
@@ -110,7 +111,7 @@ def merge_pass(V, Q, E, born, act, pc, inv_scale, P, IP, S) -> int:
             chosen[c, 0] = i
             chosen[c, 1] = j
             c += 1
-            merge_profiles(Q[i], Q[j], Q[i])  # docs/explanation/paper.md#merging
+            merge_profiles(row(Q, i), row(Q, j), row(Q, i))  # docs/explanation/paper.md#merging
             born[i, 0] = S[EPISODES]
             born[i, 1] = max(born[i, 1], born[j, 1])
             for b in range(2, born.shape[1]):

@@ -39,6 +39,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from avq._numba import row
 from avq.agents._params import ParamIndex
 from avq.agents._td import clear_traces, epsilon_greedy, sarsa_lambda, sarsa_td_error
 from avq.quantizer import append_vector, nearest_index, scaled_distance
@@ -289,7 +290,7 @@ def observe_at(V, Q, E, born, S, F, par: Params, st: Step, j: int, d2_j: float) 
             outcome == CHI_OUTCOME
             and IP[IntParam.COLLISION_SPLIT]
             and S[SIZE] < IP[IntParam.MAX_CELLS]
-            and collision_split(dist_i, np.argmax(Q[i]) == a, Q[i, a], P[FloatParam.CHI])
+            and collision_split(dist_i, np.argmax(row(Q, i)) == a, Q[i, a], P[FloatParam.CHI])
         ):
             # Beyond the paper: the cell's greedy action hit a wall here but is still the best one
             # elsewhere in the cell; instead of condemning it for the whole cell, split x off.
