@@ -29,7 +29,6 @@ from avq._numba import borrowed
 from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_geometry import random_start, robot_move, sonar_ranges
-from avq.quantizer import nearest_index
 
 __all__ = [
     "Maze",
@@ -180,7 +179,8 @@ def cached_nearest(cell, d2, seen, V, size: int, geom: int, x, inv_scale, pos) -
     ``size`` vectors of ``V``, ``(index, squared distance)``, through a :class:`NearestCache` (its arrays
     ``cell``, ``d2``, ``seen``: written here, so taken one by one). When the geometry version ``geom`` has
     changed, the cache is emptied, unless the one change was an append (the version and the size each one
-    more), which only the new vector may win, as :func:`~avq.quantizer.nearest_index` would find it."""
+    more), which only the new vector may win, as :func:`~avq.quantizer.nearest_index` would find it.
+    (GridMaze's observations have two dimensions: :func:`_grid_d2` writes that search's sum out for them.)"""
     if seen[0] != geom:
         if seen[0] + 1 == geom and seen[1] + 1 == size:
             _nearest_appended(cell, d2, V, size - 1, inv_scale)
@@ -192,8 +192,32 @@ def cached_nearest(cell, d2, seen, V, size: int, geom: int, x, inv_scale, pos) -
         seen[1] = size
     iy, ix = int(pos[1]), int(pos[0])
     if cell[iy, ix] < 0:
-        cell[iy, ix], d2[iy, ix] = nearest_index(V, size, x, inv_scale)
+        cell[iy, ix], d2[iy, ix] = _grid_nearest(V, size, x[0], x[1], inv_scale)
     return cell[iy, ix], d2[iy, ix]
+
+
+@njit(cache=True, inline="always")
+def _grid_d2(V, k: int, gx: float, gy: float, inv_scale) -> float:
+    """The squared scaled distance of vector ``k`` (2-D) to ``(gx, gy)``, summed as
+    :func:`~avq.quantizer.nearest_index` sums it (from 0.0, dimension by dimension), so to the same bits."""
+    zx = (V[k, 0] - gx) * inv_scale[0]
+    s = 0.0 + zx * zx
+    zy = (V[k, 1] - gy) * inv_scale[1]
+    return s + zy * zy
+
+
+@njit(cache=True)
+def _grid_nearest(V, size: int, gx: float, gy: float, inv_scale) -> tuple[int, float]:
+    """:func:`~avq.quantizer.nearest_index` of the 2-D observation ``(gx, gy)``: the same answer, lowest index
+    on ties."""
+    best = 0
+    best_d2 = np.inf
+    for k in range(size):
+        s = _grid_d2(V, k, gx, gy, inv_scale)
+        if s < best_d2:
+            best_d2 = s
+            best = k
+    return best, best_d2
 
 
 @njit(cache=True)
@@ -205,10 +229,7 @@ def _nearest_appended(cell, d2, V, c: int, inv_scale) -> None:
         for q in range(cell.shape[1]):
             if cell[k, q] < 0:
                 continue
-            zx = (V[c, 0] - float(q)) * inv_scale[0]
-            s = 0.0 + zx * zx
-            zy = (V[c, 1] - float(k)) * inv_scale[1]
-            s += zy * zy
+            s = _grid_d2(V, c, float(q), float(k), inv_scale)
             if s < d2[k, q]:
                 cell[k, q] = c
                 d2[k, q] = s
