@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from avq._numba import Compiled, NoAliasPipeline, borrowed
+from avq._numba import Compiled, NoAliasPipeline, borrowed, borrowed_record
 from avq.agents._maze_loop import (
     DONE,
     NEED_CAPACITY,
@@ -91,21 +91,9 @@ def _train(cells: Cells, work: Work, rng, env_rng, mz, pos, budget_steps, budget
     of its buffers, and the other arrays are arrays of their own."""
     # (Taken out of the records once: the kernels take the arrays they write one by one. Under Numba 0.68 an
     # inlined kernel that writes through a record argument can lose those writes in this loop.)
-    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = (
-        borrowed(cells.V),
-        borrowed(cells.Q),
-        borrowed(cells.E),
-        borrowed(cells.born),
-        borrowed(cells.act),
-        borrowed(cells.pc),
-        borrowed(cells.inv_scale),
-        borrowed(cells.P),
-        borrowed(cells.IP),
-        borrowed(cells.S),
-        borrowed(cells.F),
-    )
+    V, Q, E, born, act, pc, inv_scale, P, IP, S, F = borrowed_record(cells)
     x, scr, sonar = borrowed(work.x), borrowed(work.scr), borrowed(work.sonar)
-    near, near_d2, near_seen = borrowed(work.near.cell), borrowed(work.near.d2), borrowed(work.near.seen)
+    near, near_d2, near_seen = borrowed_record(work.near)
     rng, env_rng = borrowed(rng), borrowed(env_rng)
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     par = Params(P, IP, inv_scale)  # (read only: the kernels write the arrays they take one by one)
