@@ -105,7 +105,7 @@ def _rdb(url: str, attempts: int = 5) -> Any:
     import time
 
     import optuna
-    from sqlalchemy.exc import IntegrityError, OperationalError
+    from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError
 
     engine = {"connect_args": {"timeout": 60}} if url.startswith("sqlite") else {}  # (writers wait their turn)
     stale: dict[str, Any] = {_stale_keyword(): retry}
@@ -118,7 +118,7 @@ def _rdb(url: str, attempts: int = 5) -> Any:
                 grace_period=GRACE_S,
                 **stale,
             )
-        except (IntegrityError, OperationalError):
+        except (IntegrityError, OperationalError, ProgrammingError):  # (postgres: a table the other made)
             if attempt == attempts - 1:
                 raise
             time.sleep(0.5 * (attempt + 1))
