@@ -158,13 +158,21 @@ def mutual_nearest_pairs_kernel(
 def nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray) -> np.ndarray:
     """Disjoint pairs ``(i, nearest of i)``, closest first, mutual or not (``i < j`` in each pair)."""
     nn, d1, _ = neighbours_kernel(vectors, size, inv_scale)
-    order = np.argsort(d1[:size], kind="mergesort")
+    return disjoint_pairs(nn, d1[:size])
+
+
+@njit(cache=True, nogil=True)
+def disjoint_pairs(partner: np.ndarray, score: np.ndarray) -> np.ndarray:
+    """Disjoint pairs ``(i, partner[i])`` (``-1``: none), lowest ``score[i]`` first (ties by index), each cell in
+    one pair at most, written ``i < j``."""
+    size = score.shape[0]
+    order = np.argsort(score, kind="mergesort")
     used = np.zeros(size, dtype=np.bool_)
     out = np.empty((size // 2, 2), dtype=np.int64)
     k = 0
     for t in range(size):
         i = order[t]
-        j = nn[i]
+        j = partner[i]
         if j < 0 or used[i] or used[j]:
             continue
         used[i] = True

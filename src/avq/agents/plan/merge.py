@@ -30,7 +30,7 @@ from avq.agents.plan import model as _model
 from avq.agents.plan.memory import record_with_start, successor
 from avq.agents.plan.model import ModelArrays, settled
 from avq.agents.plan.state import GEOM, MEM_N, SIZE, SLOPE_N, SLOPE_SUM, PlanArrays, PlanIntParam, PlanParam
-from avq.quantizer import compact_rows, merge_kernel, nearest_index
+from avq.quantizer import compact_rows, disjoint_pairs, merge_kernel, nearest_index
 from avq.rules import mean_square_difference, merged_decision_leaves, outcome_disagrees, same_greedy_action
 
 __all__ = [
@@ -157,6 +157,23 @@ def rebuild(ag: PlanArrays, m: ModelArrays) -> None:
         record_with_start(m, e_xs, mem_x, t, cs, mem_i[t, 0], mem_f[t, 0], mem_f[t, 1], target, 1)
 
 
+@njit(cache=True, inline="always")
+def _may_merge(ag: PlanArrays, m: ModelArrays, i: int, j: int) -> bool:
+    """The refusals of a candidate pair: each half's greedy decision must leave the merged cell
+    (:func:`avq.rules.merged_decision_leaves`) and, with the outcome split on, keep its outcomes together
+    (:func:`outcomes_agree`)."""
+    known = m.C[_model.KNOWN]
+    for c in (i, j):
+        a = int(np.argmax(m.Q[c]))
+        if not merged_decision_leaves(exits_after_merge(m, i, j, a), known):
+            return False
+    if ag.IP[PlanIntParam.OUTCOME_SPLIT]:
+        for c in (i, j):
+            if not outcomes_agree(ag, m, i, j, int(np.argmax(m.Q[c]))):
+                return False
+    return True
+
+
 @njit(cache=True)
 def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
     """Merge the cells that the rules above allow, rebuild the model and return how many merges were made
@@ -179,31 +196,16 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
                 if g < rho and g < gap[i]:
                     gap[i] = g
                     partner[i] = j
-    order = np.argsort(gap, kind="mergesort")
-    used = np.zeros(size, dtype=np.bool_)
-    pairs = np.empty((size // 2, 2), dtype=np.int64)
-    merges = 0
-    for q in range(size):
-        i = order[q]
+    for i in range(size):  # (a refused partner is no partner: the refusals depend on the pair alone)
         j = partner[i]
-        if j < 0 or used[i] or used[j]:
-            continue
-        if not (
-            merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[i]))), m.C[_model.KNOWN])
-            and merged_decision_leaves(exits_after_merge(m, i, j, int(np.argmax(Q[j]))), m.C[_model.KNOWN])
-        ):
-            continue
-        if IP[PlanIntParam.OUTCOME_SPLIT] and not (
-            outcomes_agree(ag, m, i, j, int(np.argmax(Q[i]))) and outcomes_agree(ag, m, i, j, int(np.argmax(Q[j])))
-        ):
-            continue
-        used[i] = used[j] = True
-        pairs[merges, 0], pairs[merges, 1] = min(i, j), max(i, j)
-        merges += 1
+        if j >= 0 and not _may_merge(ag, m, i, j):
+            partner[i] = -1
+    pairs = disjoint_pairs(partner, gap)
+    merges = pairs.shape[0]
     if merges == 0:
         return 0
     # The codebook's midpoints and the cells moving down (avq.quantizer), and the values with them.
-    mapping = merge_kernel(V, size, pairs[:merges])
+    mapping = merge_kernel(V, size, pairs)
     compact_rows(Q, mapping)
     w = compact_rows(Vm, mapping)
     S[SIZE] = w
