@@ -84,8 +84,8 @@ def _check_picture(png: Path, model: Path) -> None:
 
 def _kill_in_a_trial(proc: subprocess.Popen, url: str) -> tuple[str, int]:
     """Let ``avq tune`` (``proc``) finish 2 trials, then SIGKILL it in the middle of its next one: it is stopped
-    (SIGSTOP) while the study is read, so that the trial seen running is the one killed. Returns what it printed
-    and that trial's number."""
+    (SIGSTOP) while the study is read, so that the trial seen running is the one killed; stopped while it holds
+    the file's write lock, it is let go on and read again. Returns what it printed and that trial's number."""
     watchdog = threading.Timer(300, proc.kill)
     watchdog.start()
     try:
@@ -99,7 +99,10 @@ def _kill_in_a_trial(proc: subprocess.Popen, url: str) -> tuple[str, int]:
         study = optuna.load_study(study_name="avq-nav3d-user-Nav3D-v0", storage=storage)
         while True:
             proc.send_signal(signal.SIGSTOP)
-            running = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,))
+            try:
+                running = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,))
+            except optuna.exceptions.StorageInternalError:  # (stopped while it held the file's write lock)
+                running = []
             mine = [
                 t.number
                 for t in running
