@@ -41,6 +41,7 @@ __all__ = [
     "nearest_cache",
     "cached_nearest",
     "drive",
+    "budget_left",
     "grid_rows",
     "add_grid_rows",
     "maze_start",
@@ -49,14 +50,16 @@ __all__ = [
     "DONE",
     "NEED_CAPACITY",
     "RECORDS_FULL",
+    "GO_ON",
     "N_R",
 ]
 
 # Records written by the fused loops, one row per episode.
 R_STEPS, R_RETURN, R_CELLS, R_APPENDS, R_MERGES, R_REFUSED, R_DECISIONS = range(7)
 N_R = 7
-# Status returned by the fused loops.
+# Status returned by the fused loops (and GO_ON, by budget_left: a new episode may start).
 DONE, NEED_CAPACITY, RECORDS_FULL = 0, 1, 2
+GO_ON = -1
 
 
 def plan(env, grid_only: bool = False) -> CompiledMaze | None:
@@ -287,6 +290,17 @@ def add_grid_rows(index: dict[tuple[float, float], int], order: list, keys: np.n
         key = (float(keys[row, 0]), float(keys[row, 1]))
         index[key] = row
         order.append(key)
+
+
+@njit(cache=True, inline="always")
+def budget_left(steps: int, episodes: int, budget_steps: int, budget_episodes: int, rec) -> int:
+    """Whether a fused loop may start a new episode: ``DONE`` when its budget of steps or episodes is spent,
+    ``RECORDS_FULL`` when ``rec`` has no row left for it, else ``GO_ON``."""
+    if steps >= budget_steps or episodes >= budget_episodes:
+        return DONE
+    if episodes >= rec.shape[0]:
+        return RECORDS_FULL
+    return GO_ON
 
 
 @njit(cache=True, inline="always")

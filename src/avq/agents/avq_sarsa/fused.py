@@ -17,10 +17,11 @@ from numba import njit
 from avq._numba import Compiled, NoAliasPipeline, borrowed, borrowed_record
 from avq.agents._maze_loop import (
     DONE,
+    GO_ON,
     NEED_CAPACITY,
-    RECORDS_FULL,
     NearestCache,
     borrowed_maze,
+    budget_left,
     cached_nearest,
     maze_move,
     maze_observation,
@@ -102,10 +103,9 @@ def _train(cells: Cells, work: Work, rng, env_rng, mz, pos, budget_steps, budget
     episodes = 0
     while True:
         if S[IN_EPISODE] == 0:
-            if steps >= budget_steps or episodes >= budget_episodes:
-                return steps, episodes, DONE
-            if episodes >= rec.shape[0]:
-                return steps, episodes, RECORDS_FULL
+            status = budget_left(steps, episodes, budget_steps, budget_episodes, rec)
+            if status != GO_ON:
+                return steps, episodes, status
             if S[SIZE] + 1 > cap:
                 return steps, episodes, NEED_CAPACITY
             maze_start(env_rng, pos, mz)

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from avq._numba import borrowed
-from avq.agents._maze_loop import DONE, RECORDS_FULL, borrowed_grid_maze, maze_move, maze_start
+from avq.agents._maze_loop import DONE, GO_ON, borrowed_grid_maze, budget_left, maze_move, maze_start
 from avq.agents._td import SarsaParams, clear_traces, epsilon_greedy, table_step
 
 __all__ = ["Table", "run_tabular_grid_maze"]
@@ -66,10 +66,9 @@ def run_tabular_grid_maze(table: Table, sp: SarsaParams, rng, env_rng, mz, pos, 
     episodes = 0
     while True:
         if T[5] == 0:
-            if steps >= budget_steps or episodes >= budget_episodes:
-                return steps, episodes, DONE
-            if episodes >= rec.shape[0]:
-                return steps, episodes, RECORDS_FULL
+            status = budget_left(steps, episodes, budget_steps, budget_episodes, rec)
+            if status != GO_ON:
+                return steps, episodes, status
             maze_start(env_rng, pos, mz)
             clear_traces(e, act)
             T[3] = 0

@@ -20,7 +20,7 @@ from avq.agents._spaces import (
 )
 from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.plan import kernels as core, memory, model as _model
-from avq.agents.plan.fused import maze_types, run_plan_maze
+from avq.agents.plan.fused import run_plan_maze
 from avq.agents.plan.state import (
     ACTION,
     EP_STEPS,
@@ -341,7 +341,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             return None
         # (called once per learn() or episode: directly after the first call, for this maze's types)
         mz = _maze_loop.maze_arguments(maze)
-        loop = self._loops.setdefault(maze_types(mz), Compiled(run_plan_maze))
+        loop = self._loops.setdefault(_maze_loop.maze_types(mz), Compiled(run_plan_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             steps, rows = _maze_loop.drive(

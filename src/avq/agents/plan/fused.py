@@ -5,7 +5,8 @@
 Each loop borrows every array it is given (:func:`avq._numba.borrowed`): it rebuilds the records
 (:class:`~avq.agents.plan.state.PlanArrays`, :class:`~avq.agents.plan.model.ModelArrays`,
 :class:`PSTable`, :class:`~avq.agents._maze_loop.Maze`) from borrowed views, so that handing them
-on to the kernels counts no references.
+on to the kernels counts no references; ``avq-plan``'s loop borrows the generators and its own arrays
+(:class:`Work`) too, as AVQ Sarsa's does (:mod:`avq.agents.avq_sarsa.fused`).
 """
 
 from __future__ import annotations
@@ -15,17 +16,21 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from avq._numba import borrowed
+from avq._numba import borrowed, borrowed_record
 from avq.agents._maze_loop import (
     DONE,
+    GO_ON,
     NEED_CAPACITY,
-    RECORDS_FULL,
     Maze,
+    NearestCache,
     borrowed_grid_maze,
     borrowed_maze,
+    budget_left,
+    cached_nearest,
     maze_move,
     maze_observation,
     maze_start,
+    nearest_cache,
 )
 from avq.agents._td import epsilon_greedy
 from avq.agents.plan import kernels as plan_core, model as _model
@@ -34,18 +39,12 @@ from avq.agents.plan.state import ACTION, GEOM, IN_EPISODE, SIZE, PlanArrays, bo
 from avq.agents.plan.tabular import ps_step
 from avq.quantizer import nearest_index
 
-__all__ = ["run_plan_maze", "run_ps_grid_maze", "PSTable", "maze_types"]
+__all__ = ["run_plan_maze", "run_ps_grid_maze", "PSTable", "Work"]
 
 # T: the episode of tabular-ps's fused loop (int): current row, current action, episode steps, rows added this
 # episode, in-episode flag
 T_ROW, T_ACTION, T_STEPS, T_NEW, T_IN_EPISODE = range(5)
 N_T = 5
-
-
-def maze_types(mz: Maze) -> tuple:
-    """What Numba's type of ``mz`` depends on, cheaply (its fields' Python types, and its arrays' dtypes,
-    dimensions and layout): a key under which an agent keeps the compiled loop it calls directly."""
-    return tuple((type(v), v.dtype, v.ndim, v.flags.c_contiguous) if isinstance(v, np.ndarray) else type(v) for v in mz)
 
 
 class PSTable(NamedTuple):
@@ -61,31 +60,45 @@ class PSTable(NamedTuple):
     TF: np.ndarray
 
 
+class Work(NamedTuple):
+    """``avq-plan``'s loop's own arrays, made once per call: the observation, the sonar ranges, and on GridMaze
+    the nearest cell of every square."""
+
+    x: np.ndarray
+    sonar: np.ndarray
+    near: NearestCache
+
+
 @njit(cache=True)
 def run_plan_maze(ag: PlanArrays, m: ModelArrays, rng, env_rng, mz: Maze, pos, budget_steps, budget_episodes, rec):
     """Train ``avq-plan`` on a maze: :func:`avq.agents.plan.kernels.start` and ``step`` at every step, as
     ``PlanningAVQ`` does stepping the environment. On GridMaze the nearest cell of every square is kept
-    while the codebook does not change. Returns ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the
-    arrays may not hold what the next step adds."""
+    while the codebook does not change (:func:`~avq.agents._maze_loop.cached_nearest`). Returns
+    ``(steps, episodes, status)``; ``NEED_CAPACITY`` when the arrays may not hold what the next step adds."""
+    work = Work(np.empty(ag.V.shape[1]), np.empty(mz.dirs.shape[0]), nearest_cache(mz))
+    return _train_plan(ag, m, work, rng, env_rng, mz, pos, budget_steps, budget_episodes, rec)  # (holds work)
+
+
+@njit(cache=True)
+def _train_plan(
+    ag: PlanArrays, m: ModelArrays, work: Work, rng, env_rng, mz: Maze, pos, budget_steps, budget_episodes, rec
+):
+    """:func:`run_plan_maze`'s loop, on borrowed views of everything it is given."""
     ag, m = borrowed_plan(ag), borrowed_model(m)
+    x, sonar = borrowed(work.x), borrowed(work.sonar)
+    near, near_d2, near_seen = borrowed_record(work.near)
+    rng, env_rng = borrowed(rng), borrowed(env_rng)
     mz, pos, rec = borrowed_maze(mz), borrowed(pos), borrowed(rec)
     V, inv_scale, S = ag.V, ag.inv_scale, ag.S
     steps = 0
     episodes = 0
-    x = np.empty(V.shape[1])
-    sonar = np.empty(mz.dirs.shape[0])
-    cache_shape = (1, 1) if mz.robot else mz.walls.shape
-    cell_cache = np.full(cache_shape, -1, dtype=np.int64)
-    dist_cache = np.zeros(cache_shape)
-    cache_geom = -1
     while True:
         if not plan_core.room_left(ag, m) or ag.e_xs.shape[0] < m.e_to.shape[0]:
             return steps, episodes, NEED_CAPACITY
         if S[IN_EPISODE] == 0:
-            if steps >= budget_steps or episodes >= budget_episodes:
-                return steps, episodes, DONE
-            if episodes >= rec.shape[0]:
-                return steps, episodes, RECORDS_FULL
+            status = budget_left(steps, episodes, budget_steps, budget_episodes, rec)
+            if status != GO_ON:
+                return steps, episodes, status
             maze_start(env_rng, pos, mz)
             maze_observation(x, pos, mz, sonar)
             plan_core.start(ag, m, rng, x)
@@ -99,13 +112,7 @@ def run_plan_maze(ag: PlanArrays, m: ModelArrays, rng, env_rng, mz: Maze, pos, b
         if mz.robot:
             j, d2 = nearest_index(V, S[SIZE], x, inv_scale)
         else:
-            if cache_geom != S[GEOM]:
-                cell_cache[:, :] = -1
-                cache_geom = S[GEOM]
-            iy, ix = int(pos[1]), int(pos[0])
-            if cell_cache[iy, ix] < 0:
-                cell_cache[iy, ix], dist_cache[iy, ix] = nearest_index(V, S[SIZE], x, inv_scale)
-            j, d2 = cell_cache[iy, ix], dist_cache[iy, ix]
+            j, d2 = cached_nearest(near, near_d2, near_seen, V, S[SIZE], S[GEOM], x, inv_scale, pos)
         if plan_core.goes_on(ag, r, j, d2, collision, terminated or truncated):
             continue
         a = plan_core.end_transition(ag, m, rng, x, collision, terminated, truncated, j, d2)
@@ -153,10 +160,9 @@ def run_ps_grid_maze(
         if _no_room(m):
             return steps, episodes, NEED_CAPACITY
         if T[T_IN_EPISODE] == 0:
-            if steps >= budget_steps or episodes >= budget_episodes:
-                return steps, episodes, DONE
-            if episodes >= rec.shape[0]:
-                return steps, episodes, RECORDS_FULL
+            status = budget_left(steps, episodes, budget_steps, budget_episodes, rec)
+            if status != GO_ON:
+                return steps, episodes, status
             maze_start(env_rng, pos, mz)
             T[T_STEPS] = 0
             T[T_NEW] = 0

@@ -21,7 +21,7 @@ from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents.plan import model as _model
-from avq.agents.plan.fused import PSTable, maze_types, run_ps_grid_maze
+from avq.agents.plan.fused import PSTable, run_ps_grid_maze
 from avq.agents.plan.model import Model
 from avq.agents.plan.tabular import ps_step
 
@@ -232,7 +232,7 @@ class PrioritizedSweeping(PlanningSettings, ModelPlanner, PerStepAgent):
         model = self._model
         # (called once per learn() or episode: directly after the first call, for this maze's types)
         mz = _maze_loop.maze_arguments(maze)
-        loop = self._loops.setdefault(maze_types(mz), Compiled(run_ps_grid_maze))
+        loop = self._loops.setdefault(_maze_loop.maze_types(mz), Compiled(run_ps_grid_maze))
 
         def run(max_steps: int, max_episodes: int, max_records: int):
             row_of, keys = _maze_loop.grid_rows(self._index, maze.dynamics.walls.shape)
