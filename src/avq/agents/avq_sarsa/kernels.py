@@ -148,6 +148,12 @@ N_S = 13
 # F: float state
 RET, DISC, EP_RETURN, PREV_R = range(4)
 N_F = 4
+#: What an episode's start sets (:func:`begin_episode_in`), as ``(index, value)`` pairs: in S the episode's
+#: counters, then the decision before the first (none) and the current one's steps; in F the transition's
+#: return and discount, the episode's return and the last reward.
+S_AT_START: tuple[tuple[int, int], ...] = ((EP_STEPS, 0), (APPENDS, 0), (REFUSED, 0), (DECISIONS, 1), (IN_EPISODE, 1))
+S_AT_START += ((PREV_CELL, -1), (PREV_GREEDY, 0), (REPEATS, 0))
+F_AT_START = ((RET, 0.0), (DISC, 1.0), (EP_RETURN, 0.0), (PREV_R, 0.0))
 # Returned by observe() for an observation or reward that is NaN or infinite.
 NOT_FINITE = -2
 
@@ -210,18 +216,10 @@ def begin_episode_in(E, born, act, S, F, cell: int) -> int:
     """Start an episode in ``cell``, the nearest cell of its first observation; return it. The caller then
     picks the action."""
     clear_traces(E, act)
-    S[EP_STEPS] = 0
-    S[APPENDS] = 0
-    S[REFUSED] = 0
-    S[DECISIONS] = 1
-    S[IN_EPISODE] = 1
-    S[PREV_CELL] = -1
-    S[PREV_GREEDY] = 0
-    S[REPEATS] = 0
-    F[RET] = 0.0
-    F[DISC] = 1.0
-    F[EP_RETURN] = 0.0
-    F[PREV_R] = 0.0
+    for k, v in S_AT_START:
+        S[k] = v
+    for k, f in F_AT_START:
+        F[k] = f
     S[CELL] = cell
     born[cell, 1] = S[EPISODES] + 1
     return cell

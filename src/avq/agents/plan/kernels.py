@@ -55,6 +55,7 @@ from avq.agents.plan.state import (
     DISC,
     EP_RETURN,
     EP_STEPS,
+    F_AT_START,
     GEOM,
     IN_EPISODE,
     MEM_N,
@@ -65,6 +66,7 @@ from avq.agents.plan.state import (
     PREV_KNOWN,
     REFUSED,
     RET,
+    S_AT_START,
     SIZE,
     SLOPE_N,
     SLOPE_SUM,
@@ -241,20 +243,10 @@ def start(ag: PlanArrays, m: ModelArrays, src, obs) -> int:
         _new_cell(ag, m, obs)
     for d in range(obs.shape[0]):
         ag.xs[d] = obs[d]
-    S[EP_STEPS] = 0
-    S[APPENDS] = 0
-    S[REFUSED] = 0
-    S[SPLITS] = 0
-    S[MERGES] = 0
-    S[DECISIONS] = 1
-    S[IN_EPISODE] = 1
-    S[PREV_CELL] = -1
-    S[PREV_KNOWN] = 0
-    S[DEC_STEPS] = 0
-    S[DEC_REFUSED] = 0
-    F[RET] = 0.0
-    F[DISC] = 1.0
-    F[EP_RETURN] = 0.0
+    for k, v in S_AT_START:
+        S[k] = v
+    for k, f in F_AT_START:
+        F[k] = f
     cell, _ = nearest_index(ag.V, S[SIZE], obs, ag.inv_scale)
     S[CELL] = cell
     S[ACTION] = decide(ag, m, src, cell, obs)

@@ -63,6 +63,12 @@ N_S = 17
 # F: float state
 RET, DISC, EP_RETURN, SLOPE_SUM, SLOPE_N = range(5)
 N_F = 5
+#: What an episode's start sets (:func:`avq.agents.plan.kernels.start`), as ``(index, value)`` pairs: in S the
+#: episode's counters, then the decision before the first (none) and the current one's; in F the transition's
+#: return and discount and the episode's return.
+S_AT_START: tuple[tuple[int, int], ...] = ((EP_STEPS, 0), (APPENDS, 0), (REFUSED, 0), (SPLITS, 0), (MERGES, 0))
+S_AT_START += ((DECISIONS, 1), (IN_EPISODE, 1), (PREV_CELL, -1), (PREV_KNOWN, 0), (DEC_STEPS, 0), (DEC_REFUSED, 0))
+F_AT_START = ((RET, 0.0), (DISC, 1.0), (EP_RETURN, 0.0))
 
 
 class PlanArrays(NamedTuple):
