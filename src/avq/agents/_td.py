@@ -119,18 +119,10 @@ def clear_traces(E: np.ndarray, act: np.ndarray) -> None:
 
 @njit(cache=True, inline="always")
 def trace_update(
-    Q: np.ndarray,
-    E: np.ndarray,
-    rows: np.ndarray,
-    n_rows: int,
-    s_tm1: int,
-    a_tm1: int,
-    delta: float,
-    alpha: float,
-    trace_decay: float,
-    replacing: bool,
+    Q, E, rows, n_rows: int, s_tm1: int, a_tm1: int, delta: float, alpha: float, trace_decay: float, replacing: bool
 ) -> None:
-    """The Sarsa(λ) update in place (docs/explanation/paper.md#learning), over ``rows[:n_rows]`` (every row whose trace may be non-zero).
+    """The Sarsa(λ) update in place (docs/explanation/paper.md#learning) of the values ``Q`` and traces ``E``
+    (``(rows, actions)`` arrays), over ``rows[:n_rows]`` (every row whose trace may be non-zero).
 
     ``E[s, a] = 1`` (replacing) or ``+= 1`` (accumulating); ``Q += alpha * delta * E``;
     ``E *= trace_decay``, where ``trace_decay = gamma ** k * lambda``.
@@ -150,15 +142,7 @@ def trace_update(
 
 @njit(cache=True, inline="always")
 def sarsa_lambda(
-    Q: np.ndarray,
-    E: np.ndarray,
-    act: np.ndarray,
-    s_tm1: int,
-    a_tm1: int,
-    delta: float,
-    alpha: float,
-    trace_decay: float,
-    replacing: bool,
+    Q, E, act, s_tm1: int, a_tm1: int, delta: float, alpha: float, trace_decay: float, replacing: bool
 ) -> None:
     """:func:`trace_update` over the active list ``act``, with ``s_tm1`` added to it."""
     mark_active(act, s_tm1)
