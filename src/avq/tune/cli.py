@@ -7,6 +7,7 @@ Nothing here imports Optuna until a command runs.
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 from pathlib import Path
 from typing import Any
@@ -115,26 +116,9 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
     from avq.cli.commands import key_values
     from avq.tune import tune
 
-    return tune(
-        args.env,
-        args.agent,
-        storage=args.storage,
-        study_name=args.study_name,
-        out=args.out,
-        n_trials=args.n_trials,
-        timeout=args.timeout,
-        seeds=args.seeds,
-        seed=args.seed,
-        episodes=args.episodes,
-        timesteps=args.timesteps,
-        evaluations=args.evaluations,
-        metric=args.metric,
-        eval_episodes=args.eval_episodes,
-        env_kwargs=key_values(args.env_kwargs, "--env-kwargs") if args.env_kwargs else None,
-        fixed=key_values(args.set, "--set") if args.set else None,
-        space=args.space,
-        pruner=args.pruner,
-        jobs=args.jobs,
-        backend=args.backend,
-        address=args.address,
-    )
+    # Every option named after a parameter of tune() is that parameter; the KEY=VALUE lists are read here.
+    parameters = inspect.signature(tune).parameters
+    options = {name: value for name, value in vars(args).items() if name in parameters}
+    options["env_kwargs"] = key_values(args.env_kwargs, "--env-kwargs") if args.env_kwargs else None
+    options["fixed"] = key_values(args.set, "--set") if args.set else None
+    return tune(**options)
