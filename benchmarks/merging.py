@@ -5,8 +5,9 @@ Two studies, each a CSV under ``docs/data/`` and a table printed:
 * ``--protocol``: ``avq reproduce``'s protocol (``lau2002``, 1000 trials, then the greedy policy walked
   from every start) for each variant, over a set of seeds; per seed the cells, the greedy success and the
   path ratio, and whether the seed meets all three of: success >= 95%, cells <= 30, path ratio <= 1.15.
-* ``--resolution``: env steps to 95% greedy success on ``lau2002`` refined k x k (as
-  ``benchmarks/scaling.py --resolution``), and the cells then.
+* ``--resolution``, ``--robot``, ``--generated``: env steps to 95% greedy success, and the cells then, on
+  ``lau2002`` refined k x k, on ``avq/RobotMaze-v0`` with finer moves, and on generated mazes of growing
+  side (``--slip 0.1``: slippery), as ``benchmarks/scaling.py`` measures its agents on the same mazes.
 
 Variants (``--variants``, names below) are ``avq-plan`` on the maze with the overrides listed; seeds are
 chosen with ``--seeds`` (``0-29``: the seeds the variants were chosen on; ``100-199`` and ``200-299``: held out).
@@ -14,6 +15,8 @@ chosen with ``--seeds`` (``0-29``: the seeds the variants were chosen on; ``100-
     python benchmarks/merging.py --protocol --seeds 0-29
     python benchmarks/merging.py --protocol --seeds 100-199 --variants no-merge merge+cycle+radius
     python benchmarks/merging.py --resolution --seeds 0-4 --variants no-merge merge+cycle+radius
+    python benchmarks/merging.py --robot --seeds 0-9 --variants merge+cycle+radius
+    python benchmarks/merging.py --generated --seeds 0-4 --variants merge+cycle+radius
 """
 
 from __future__ import annotations
@@ -42,7 +45,13 @@ VARIANTS = {
     "merge+cycle+radius": {"rho": 25.0, "cycle_split": True, "known_radius": 0.3},
 }
 PROTOCOL_FIELDS = ("variant", "seed", "cells", "success", "path_ratio", "env_steps", "meets")
-RESOLUTION_FIELDS = ("variant", "k", "seed", "reached", "env_steps", "cells")
+STEPS_FIELDS = ("variant", "size", "seed", "reached", "env_steps", "cells")
+#: Each family of mazes: its sizes (k, move or side) and its default budget of env steps.
+FAMILIES = {
+    "resolution": ((1, 2, 4, 8), 400_000),
+    "robot": ((0.25, 0.125), 1_000_000),
+    "generated": ((12, 22, 42, 62, 92), 1_000_000),
+}
 
 
 def protocol_row(variant: str, seed: int) -> dict:
@@ -60,11 +69,16 @@ def protocol_row(variant: str, seed: int) -> dict:
     )
 
 
-def resolution_row(variant: str, k: int, seed: int, budget: int) -> dict:
-    make, _, limit = maze_factory("resolution", k, 0.0)
+def steps_row(family: str, variant: str, size: float, seed: int, budget: int, slip: float) -> dict:
+    make, _, limit = maze_factory(family, size, slip)
     agent = avq.make_agent("avq-plan", make(), seed=seed, **{"max_cells": 1_000_000, **VARIANTS[variant]})
-    reached, _, _ = learn_until(agent, make(), budget, 0.95, max_steps=limit)
-    return dict(variant=variant, k=k, seed=seed, reached=reached, env_steps=agent.num_timesteps, cells=agent.n_cells)
+    walks = make()
+    if slip:
+        walks.reset(seed=10_000 + seed)  # (the walks slip too: seeded, as benchmarks/scaling.py)
+    reached, _, _ = learn_until(agent, walks, budget, 0.95, max_steps=limit)
+    return dict(
+        variant=variant, size=size, seed=seed, reached=reached, env_steps=agent.num_timesteps, cells=agent.n_cells
+    )
 
 
 def seeds_of(text: str) -> list[int]:
@@ -83,11 +97,13 @@ def write(path: Path, fields: tuple, rows: list[dict]) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--protocol", action="store_true")
-    ap.add_argument("--resolution", action="store_true")
+    for family in FAMILIES:
+        ap.add_argument(f"--{family}", action="store_true")
+    ap.add_argument("--slip", type=float, default=0.0, help="--generated: the slip probability")
+    ap.add_argument("--sizes", type=float, nargs="+", default=None, help="instead of the family's")
     ap.add_argument("--seeds", default="0-29")
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
-    ap.add_argument("--k", type=int, nargs="+", default=[1, 2, 4, 8])
-    ap.add_argument("--budget", type=int, default=400_000)
+    ap.add_argument("--budget", type=int, default=None, help="env steps per run (default: the family's)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs/data")
     args = ap.parse_args()
@@ -106,21 +122,35 @@ def main() -> None:
                 f"| {v} | {sum(r['meets'] for r in rs)} of {len(rs)} | {np.median(c):.0f} [{min(c)}-{max(c)}] | "
                 f"{min(r['success'] for r in rs):.0%} | {np.median(q):.3f}, {max(q):.2f} |"
             )
-    if args.resolution:
-        jobs = [delayed(resolution_row)(v, k, s, args.budget) for v in args.variants for k in args.k for s in seeds]
-        rows = Parallel(n_jobs=args.jobs)(jobs)
-        write(Path(args.out) / "merging_resolution.csv", RESOLUTION_FIELDS, rows)
-        print("| variant | k | reached 95% | env steps median [range] | cells median [range] |")
-        print("|---|---|---|---|---|")
-        for v in args.variants:
-            for k in args.k:
-                rs = [r for r in rows if r["variant"] == v and r["k"] == k]
-                st = [r["env_steps"] for r in rs]
-                c = [r["cells"] for r in rs]
-                print(
-                    f"| {v} | {k} | {sum(r['reached'] for r in rs)} of {len(rs)} | {np.median(st):,.0f} "
-                    f"[{min(st):,}-{max(st):,}] | {np.median(c):.0f} [{min(c)}-{max(c)}] |"
-                )
+    for family, (default_sizes, default_budget) in FAMILIES.items():
+        if getattr(args, family):
+            steps_study(family, args, seeds, args.sizes or default_sizes, args.budget or default_budget)
+
+
+def steps_study(family: str, args: argparse.Namespace, seeds: list[int], sizes, budget: int) -> None:
+    jobs = [
+        delayed(steps_row)(family, v, size, s, budget, args.slip)
+        for v in args.variants
+        for size in sizes
+        for s in seeds
+    ]
+    rows = Parallel(n_jobs=args.jobs)(jobs)
+    slip = f"_slip{args.slip:g}" if args.slip else ""
+    write(Path(args.out) / f"merging_{family}{slip}.csv", STEPS_FIELDS, rows)
+    print(
+        f"| variant | {'k' if family == 'resolution' else 'move' if family == 'robot' else 'side'} | reached 95% | "
+        "env steps median [range] | cells median [range] |"
+    )
+    print("|---|---|---|---|---|")
+    for v in args.variants:
+        for size in sizes:
+            rs = [r for r in rows if r["variant"] == v and r["size"] == size]
+            st = [r["env_steps"] for r in rs]
+            c = [r["cells"] for r in rs]
+            print(
+                f"| {v} | {size:g} | {sum(r['reached'] for r in rs)} of {len(rs)} | {np.median(st):,.0f} "
+                f"[{min(st):,}-{max(st):,}] | {np.median(c):.0f} [{min(c)}-{max(c)}] |"
+            )
 
 
 if __name__ == "__main__":

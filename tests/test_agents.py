@@ -356,8 +356,13 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
 
     assert avq.make_agent("avq", GridMaze(), seed=0).get_params() == maze.get_params()  # built without gym.make
     robot = avq.make_agent("avq", "avq/RobotMaze-v0")
-    assert robot.collision_split and not robot.cycle_split and robot.max_cells == 10_000
-    assert isinstance(maze, AVQSarsa) and isinstance(robot, AVQSarsa)
+    assert isinstance(maze, AVQSarsa) and isinstance(robot, avq.PlanningAVQ)
+    assert robot.get_params() == {
+        **avq.make_agent("avq-plan", "avq/RobotMaze-v0").get_params(),
+        "rho": 25.0,
+        "cycle_split": True,
+        "known_radius": 0.3,
+    }
     general = avq.make_agent("avq", gym.make("MountainCar-v0"))
     assert isinstance(general, avq.PlanningAVQ) and agent_class("avq", "MountainCar-v0") is avq.PlanningAVQ
     assert {k: general.get_params()[k] for k in AGENTS["avq"][1]} == AGENTS["avq"][1]
