@@ -79,8 +79,8 @@ def test_other_wrappers_fall_back_to_the_generic_path():
 @pytest.mark.parametrize("kwargs", [{}, {"observe_sonar": True}, {"start": "fixed", "move": 0.5}])
 @pytest.mark.parametrize(
     "name, overrides",
-    VARIANTS + [("avq", {"cycle_split": True, "explore_bonus": 2.0})],
-    ids=["avq-paper", "avq", "avq-general", "avq-cycle-split-bonus"],
+    VARIANTS + [("avq-maze", {"cycle_split": True, "explore_bonus": 2.0, "max_cells": 10_000})],
+    ids=["avq-paper", "avq", "avq-general", "avq-maze-cycle-split-bonus"],
 )
 def test_fused_robot_maze_is_identical_to_the_generic_path(name, overrides, kwargs):
     runs = []
@@ -91,9 +91,11 @@ def test_fused_robot_maze_is_identical_to_the_generic_path(name, overrides, kwar
 
 
 def test_noisy_sonar_uses_the_generic_path():
-    agent = avq.make_agent("avq", gym.make("avq/RobotMaze-v0", sonar_noise=0.1), seed=0)
-    assert agent._fused_runner() is None
-    assert avq.make_agent("avq", gym.make("avq/RobotMaze-v0"), seed=0)._fused_runner() is not None
+    for name in ("avq", "avq-maze"):  # (the planner and AVQ Sarsa)
+        agent = avq.make_agent(name, gym.make("avq/RobotMaze-v0", sonar_noise=0.1), seed=0).learn(total_episodes=1)
+        assert agent._fused_runner() is None
+        agent = avq.make_agent(name, gym.make("avq/RobotMaze-v0"), seed=0).learn(total_episodes=1)
+        assert agent._fused_runner() is not None
 
 
 @pytest.mark.parametrize("start", ["random", "fixed"])
