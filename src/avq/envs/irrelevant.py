@@ -72,7 +72,9 @@ class IrrelevantDims(gym.ObservationWrapper[np.ndarray, Any, np.ndarray], gym.ut
 
     def step(self, action: Any) -> tuple[np.ndarray, Any, bool, bool, dict]:
         """Step the task and move the new dimensions (drawn again, or one step of the walk)."""
-        rng = self._rng if self._rng is not None else np.random.default_rng()  # (step before reset: the task refuses)
+        if self._rng is None:  # (a step before any reset, if the task allows it)
+            self._rng = np.random.default_rng()
+        rng = self._rng
         if self.kind == "noise":
             self._extra[:] = rng.random(self.k)
         else:

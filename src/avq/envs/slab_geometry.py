@@ -89,7 +89,10 @@ def _slabs(dims: int, axis: list[int], position: list[float], low: np.ndarray, h
     lo, hi = np.array(low, dtype=np.float64).reshape(-1, dims), np.array(high, dtype=np.float64).reshape(-1, dims)
     lo[np.arange(len(ax)), ax], hi[np.arange(len(ax)), ax] = -np.inf, np.inf
     order = np.lexsort((pos, ax))
-    return Slabs(ax[order], pos[order], lo[order], hi[order])
+    arrays = [ax[order], pos[order], lo[order], hi[order]]
+    for a in arrays:
+        a.setflags(write=False)
+    return Slabs(*arrays)
 
 
 def parse_slabs(walls: Sequence[Any], dims: int, move: float, goal_size: float) -> Slabs:

@@ -117,13 +117,17 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
             raise ValueError(f"dims must be an integer from {MIN_DIMS} to {MAX_DIMS} (the cube's axes), not {dims!r}")
         self.dims = d = int(dims)
         self.move = check_range("move", move, 0.0, 0.5, low_open=True)
-        self.goal_size = check_range("goal_size", goal_size, self.move, 0.5)
-        self.opening = check_range("opening", opening, self.move, 1.0)
+        self.goal_size = _at_least_a_move(
+            "goal_size", goal_size, self.move, 0.5, "every lattice of moves meets the goal"
+        )
+        self.opening = _at_least_a_move("opening", opening, self.move, 1.0, "every lattice of moves passes an opening")
         self.slip = check_range("slip", slip, 0.0, 1.0, high_open=True)
         self.layout_seed = check_int("layout_seed", layout_seed, 0)
         self.start = check_choice("start", start, ("random", "fixed"))
         self.max_steps = check_optional(check_int, "max_steps", max_steps, 1) or math.ceil(10 * d / self.move - EPS)
-        self.render_mode = None if render_mode is None else check_choice("render_mode", render_mode, ("ansi",))
+        if render_mode not in (None, "ansi"):
+            raise ValueError(f"render_mode must be None or 'ansi', not {render_mode!r}")
+        self.render_mode = render_mode
         self.full_resolution_states: int = math.ceil(1.0 / self.move - EPS) ** d
         """Points of a grid with one point per ``move`` on every axis: ``ceil(1 / move)^d``."""
 
@@ -269,3 +273,13 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         if np.all(x >= self._goal_low):
             raise ValueError(f"options['start']={tuple(x)} is in the goal; choose a point outside it")
         return x
+
+
+def _at_least_a_move(name: str, value: Any, move: float, high: float, why: str) -> float:
+    """``value`` as a float if it is a number in ``[move, high]``; else a ``ValueError`` that says why."""
+    try:
+        return check_range(name, value, move, high)
+    except ValueError:
+        raise ValueError(
+            f"{name} must be in [move, {high}] = [{move}, {high}] (at least one move, so that {why}), not {value!r}"
+        ) from None
