@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import re
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -142,3 +144,20 @@ def test_an_avq_agent_learns_on_a_wrapped_task_without_error():
     agent = avq.make_agent("avq", IrrelevantDims(gym.make("MountainCar-v0"), 2), seed=0)
     agent.learn(total_episodes=2)
     assert agent.codebook_.shape[1] == 4
+
+
+def test_the_example_of_the_environments_page_runs():
+    page = Path(__file__).resolve().parents[1] / "docs" / "reference" / "environments.md"
+    blocks = re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), re.M | re.S)
+    assert blocks
+    namespace: dict = {}
+    for block in blocks:
+        exec(compile(block, str(page), "exec"), namespace)
+
+
+def test_a_wrapped_task_gets_the_general_defaults_not_those_chosen_for_its_own_observations():
+    # CartPole-v1's entry weights its 4 dimensions one by one (scale_factor): not 6 dimensions
+    agent = avq.make_agent("avq", IrrelevantDims(gym.make("CartPole-v1"), 2), seed=0)
+    assert agent.defaults_used.env_id is None and agent.defaults_used.key == "*"
+    agent.learn(total_episodes=2)
+    assert avq.make_agent("avq", IrrelevantDims(gym.make("CartPole-v1"), 0)).defaults_used.key == "CartPole-v1"
