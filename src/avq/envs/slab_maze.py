@@ -76,9 +76,12 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
       least one move thick and no move crosses two slabs). The maze must lead to the goal: from every
       region with ``start="random"``, from the start's with ``"fixed"`` (see :attr:`slabs` for the check).
     - ``layout_seed``: the seed of drawn slabs. Slab ``j`` is perpendicular to axis ``j % d``; the slabs of an
-      axis lie in equal bins of ``[move, 1 - goal_size]``, each at a uniform place; each opening is
-      ``opening`` wide on every other axis, at a uniform place; a maze some region of which does not lead to
-      the goal is drawn again. ``opening`` in ``[move, 1]``: the open part of a slab is ``opening^(d - 1)``.
+      axis lie in equal bins of ``[move, 1 - goal_size]``, each at a uniform place. The axes are put in a
+      random order, in which a path passes their slabs: an opening is ``opening`` wide on every other axis,
+      at a uniform place where it overlaps (by at least a move) the last slice of each axis passed before
+      it and every slice of each axis passed after it (wider than ``opening`` where it must span several
+      slabs). So every region leads to the goal, whatever the draw. ``opening`` in ``[move, 1]`` (default
+      0.5): the open part of a slab with one slab per axis is ``opening^(d - 1)``, 1/128 at ``d = 8``.
     - ``move`` in (0, 0.5] (default 0.1); ``goal_size`` in ``[move, 0.5]`` (default 0.1).
     - ``start``: ``"random"``: uniform in the cube outside the goal (from ``self.np_random``); ``"fixed"``:
       ``(move / 2, ..., move / 2)``. ``reset(options={"start": x})`` starts at any point ``x`` of the cube
