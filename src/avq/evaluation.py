@@ -178,6 +178,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
 SUCCESS_RULES: dict[str, str] = {
     "avq/GridMaze-v0": "terminated",
     "avq/RobotMaze-v0": "terminated",
+    "avq/SlabMaze-v0": "terminated",
     "MountainCar-v0": "terminated",
     "MountainCarContinuous-v0": "terminated",
     "Acrobot-v1": "terminated",

@@ -180,11 +180,12 @@ def agent_defaults(name: str, env_id: str | None = None) -> dict[str, Any]:
 
 def _env_id(env: gym.Env | str) -> str | None:
     """The registered id of ``env``: its ``spec``, or for an environment built without ``gymnasium.make``
-    the id registered for its class."""
+    the id registered for its class; None when a wrapper changed its observations (``IrrelevantDims``, say):
+    the defaults of a task are chosen for its own observations."""
     if isinstance(env, str):
         return split_env_id(env)[1]  # (without the module of Gymnasium's "module:id" form)
-    if not isinstance(env, gym.Env):
-        return None  # the agent's constructor says what it needs
+    if not isinstance(env, gym.Env) or env.observation_space != env.unwrapped.observation_space:
+        return None  # (not an env: the agent's constructor says what it needs)
     spec = getattr(env, "spec", None)
     if spec is not None:
         return spec.id
@@ -199,7 +200,9 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     The names, with each one's rules and defaults, are in ``avq/agents/defaults/``. Some agents have
     defaults of their own on some environments: ``avq`` on ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0``
     uses the collision-driven maze rules. The environment is recognised by its registered id
-    (``env.spec.id``, or the id registered for its class when it was built without ``gymnasium.make``).
+    (``env.spec.id``, or the id registered for its class when it was built without ``gymnasium.make``);
+    a wrapper that changes the observations (as :class:`avq.envs.IrrelevantDims` does) makes it another
+    task, which gets the general defaults.
     The agent's ``defaults_used`` says which entry was used and which parameters were explicit.
 
     Args:

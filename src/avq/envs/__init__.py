@@ -13,13 +13,17 @@ from typing import Any
 import gymnasium as gym
 
 from avq.envs.grid_maze import GridMaze
+from avq.envs.irrelevant import IrrelevantDims
 from avq.envs.layouts import MAPS, Layout, load_layout, parse_layout, random_layout, refine_layout
 from avq.envs.robot_maze import RobotMaze
+from avq.envs.slab_maze import SlabMaze
 
 __all__ = [
     "as_env",
     "GridMaze",
     "RobotMaze",
+    "SlabMaze",
+    "IrrelevantDims",
     "MAPS",
     "Layout",
     "load_layout",
@@ -33,10 +37,11 @@ __all__ = [
 
 
 def register_envs() -> None:
-    """Register ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` (idempotent).
+    """Register ``avq/GridMaze-v0``, ``avq/RobotMaze-v0`` and ``avq/SlabMaze-v0`` (idempotent).
 
-    RobotMaze is registered without ``max_episode_steps``: it truncates by itself
-    after ``max_steps`` steps, a limit that scales with its ``move`` argument.
+    RobotMaze and SlabMaze are registered without ``max_episode_steps``: they truncate by
+    themselves after ``max_steps`` steps, a limit that scales with their ``move`` argument
+    (and SlabMaze's with its dimension).
     """
     if "avq/GridMaze-v0" not in gym.registry:
         gym.register(
@@ -49,6 +54,8 @@ def register_envs() -> None:
             id="avq/RobotMaze-v0",
             entry_point="avq.envs.robot_maze:RobotMaze",
         )
+    if "avq/SlabMaze-v0" not in gym.registry:
+        gym.register(id="avq/SlabMaze-v0", entry_point="avq.envs.slab_maze:SlabMaze")
 
 
 register_envs()
