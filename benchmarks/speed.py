@@ -172,13 +172,20 @@ def planner_backups_per_second(name: str, reps: int = 200) -> float:
     return best
 
 
-def planning_steps_per_second(name: str, episodes: int) -> tuple[float, float, float, int]:
+#: avq-plan with merging under its model (as avq on the robot: benchmarks/merging.py's merge+cycle+radius).
+MERGING = {"rho": 25.0, "cycle_split": True, "known_radius": 0.3}
+
+
+def planning_steps_per_second(
+    name: str, episodes: int, overrides: dict | None = None
+) -> tuple[float, float, float, int]:
     """``(steps/s while learning from scratch, steps/s once learned, backups/s while learning, cells)`` on the
     fused path, the best of 3 runs (the first episodes of the first run compile nothing: warmed up before)."""
-    avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=99).learn(total_episodes=5)  # compile
+    overrides = overrides or {}
+    avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=99, **overrides).learn(total_episodes=5)  # compile
     fresh = learned = rate = 0.0
     for rep in range(3):
-        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep)
+        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep, **overrides)
         t = time.perf_counter()
         agent.learn(total_episodes=episodes)
         dt = time.perf_counter() - t
@@ -317,12 +324,13 @@ def main() -> None:
         f"   {'agent':<10} {'M steps/s learning':>19} {'once learned':>13} {'planner M backups/s':>20} "
         f"{'of reference':>13} {'cells':>6}"
     )
-    for name in ("avq-plan", "tabular-ps"):
-        fresh, learned, _, cells = planning_steps_per_second(name, int(2000 * scale) or 100)
+    for name, overrides in (("avq-plan", None), ("tabular-ps", None), ("avq-plan", MERGING)):
+        fresh, learned, _, cells = planning_steps_per_second(name, int(2000 * scale) or 100, overrides)
         rate = planner_backups_per_second(name)
+        label = name + (" merging" if overrides else "")
         print(
-            f"   {name:<10} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
-            f"{cells:>6}"
+            f"   {label:<10} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
+            f"{cells:>6}  ({fresh / ref:.0%} of the fused reference while learning)"
         )
 
     print("\n2. generic path (Python steps the environment; reference: the same env stepped with random actions)")

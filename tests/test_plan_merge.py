@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import avq
+from avq import quantizer
 from avq.agents.plan import explore, kernels, memory, merge, model as _model
 from avq.agents.plan.model import CONT, Model
 from avq.agents.plan.state import GEOM, MEM_N, MEM_POS, SIZE, PlanIntParam
@@ -221,6 +222,42 @@ def test_cells_with_an_untried_decision_do_not_merge():
     converge(agent)  # (West, 3, untried in both: worth v_opt in both, so the profiles agree)
     assert np.array_equal(agent._model.a.Q[0], agent._model.a.Q[1])
     assert merge.merge_pass(agent._ag, agent._model.a) == 0
+
+
+def test_after_a_merge_a_remembered_observation_is_placed_among_its_cell_and_the_merged_cells():
+    # Vectors 0 (0, 0), 1 (2, 0), 2 (10, 0), 3 (5, 4), 4 (20, 0); the pairs (0, 1) and (2, 4) merge: midpoints (1, 0)
+    # in slot 0 and (15, 0) in slot 1, and (5, 4) moves down to slot 2.
+    V = np.array([[0.0, 0.0], [2.0, 0.0], [10.0, 0.0], [5.0, 4.0], [20.0, 0.0]])
+    pairs = np.array([[0, 1], [2, 4]])
+    mapping = quantizer.merge_kernel(V, 5, pairs)
+    assert mapping.tolist() == [0, 0, 1, 2, 1] and V[:3].tolist() == [[1.0, 0.0], [15.0, 0.0], [5.0, 4.0]]
+    half, merged = np.array([True, True, True, False, True]), np.array([0, 1])
+    X = np.array([[2.0, 0.0], [5.0, 1.0], [5.0, 4.5], [12.0, 1.0]])
+
+    def cell(t, before):
+        return memory.cell_after_merge(V, 3, X, t, 0, before, mapping, half, merged, np.ones(2))
+
+    assert cell(0, 1) == 0  # (2, 0) was in a half (1): among all, nearest (1, 0) (squared 1)
+    assert cell(1, 3) == 2  # (5, 1) was in 3: 9 from (5, 4), 17 from (1, 0), 101 from (15, 0): its own cell
+    V[2] = (9.0, 9.0)  # (cell 3, now 2, far: the merged cells take what lies nearer them)
+    assert cell(3, 3) == 1  # (12, 1): 73 from (9, 9), 10 from (15, 0)
+    assert cell(2, 3) == 0  # (5, 4.5): 36.25 from both (1, 0) and (9, 9): the lower index
+
+
+def test_with_merging_every_remembered_transition_lies_in_the_cells_of_its_observations():
+    """What the merge pass's rebuild relies on (memory.cell_after_merge): the memory's start and end cells are those
+    of the codebook, also for a transition whose start a cell appended in its last step took over."""
+    agent = avq.make_agent("avq-plan", gym.make("avq/GridMaze-v0"), seed=0, rho=25.0, cycle_split=True)
+    for _ in range(60):
+        agent.learn(total_episodes=1)
+        ag = agent._ag
+        size, n = int(ag.S[SIZE]), ag.xs.shape[0]
+        mem_x, mem_i = ag.mem_x[: int(ag.S[MEM_N])], ag.mem_i[: int(ag.S[MEM_N])]
+        starts = agent.cells(mem_x[:, :n])
+        ends = np.where(mem_i[:, 2] >= 0, agent.cells(mem_x[:, n:]), -1)
+        assert np.array_equal(mem_i[:, 1], starts) and np.array_equal(mem_i[:, 2], ends), agent.num_episodes
+        assert agent.codebook_.shape[0] == size
+    assert agent.episode_history()["merges"].sum() > 0 and agent.episode_history()["appends"].sum() > 0
 
 
 # -- the agent ----------------------------------------------------------------------------------------------

@@ -42,7 +42,7 @@ from numba import njit
 
 from avq.agents.plan import model as _model
 from avq.agents.plan.explore import decide
-from avq.agents.plan.memory import record_with_start, relocate, remember
+from avq.agents.plan.memory import record_with_start, relocate, remember, start_after_growth, successor
 from avq.agents.plan.merge import merge_pass, value_slope
 from avq.agents.plan.model import CONT, ModelArrays, known as known_pair, settled
 from avq.agents.plan.state import (
@@ -308,6 +308,7 @@ def end_transition(
     i = S[CELL]
     a = S[ACTION]
     done = terminated or truncated
+    grown_from = S[SIZE]  # (the cells appended from here on are new in this step)
     # The aggregate transition (i, a) -> j has ended.
     split_after = IP[PlanIntParam.SPLIT_AFTER]
     if j == i and not (collision or done) and split_after > 0 and S[DEC_STEPS] >= split_after:
@@ -355,7 +356,13 @@ def end_transition(
         # (a crossing: it ended only because the cell changed; composed only where cells merge)
         crossing = P[PlanParam.RHO] >= 0.0 and not collision and not terminated and j != i
         remember(ag, x, a, i, jm, F[RET], F[DISC], crossing)
-        record_with_start(m, ag.e_xs, ag.mem_x, t, i, a, F[RET], F[DISC], jm, 1)
+        start = i
+        if P[PlanParam.RHO] >= 0.0 and S[SIZE] > grown_from:
+            # With merging, every remembered transition lies in the cell its start lies in (the merge pass's
+            # rebuild relies on it): a cell appended in this step may hold the decision's start.
+            start = start_after_growth(ag, t, i, grown_from)
+            ag.mem_i[t, 1] = start
+        record_with_start(m, ag.e_xs, ag.mem_x, t, start, a, F[RET], F[DISC], successor(start, jm, crossing), 1)
         if outcome_disagrees(excess, P[PlanParam.SPLIT_THRESHOLD]):
             bar = -np.inf  # the value of the next best decision in i
             for b in range(Q.shape[1]):

@@ -62,6 +62,26 @@ def _cell_after(V, size: int, X, t: int, off: int, k: int, u: int, w: int, inv_s
 
 
 @njit(cache=True, inline="always")
+def cell_after_merge(V, size: int, X, t: int, off: int, k: int, mapping, half, merged, inv_scale) -> int:
+    """The cell of the stored observation ``X[t, off:]``, which was in cell ``k``, after a merge pass
+    (:func:`avq.quantizer.merge_kernel`'s ``mapping``; ``half[k]``: ``k`` was one of a merged pair; ``merged``:
+    the merged cells' new indices): among all cells if it was in a merged pair, else among its own cell (now
+    ``mapping[k]``) and the merged cells, whose vectors alone moved; lowest index on ties as
+    :func:`avq.quantizer.nearest_index`."""
+    if half[k]:
+        best, _ = nearest_index(V, size, X[t, off : off + V.shape[1]], inv_scale)
+        return best
+    best = mapping[k]
+    best_d = _row_distance2(X, t, off, V, best, inv_scale)
+    for q in range(merged.shape[0]):
+        c = merged[q]
+        d = _row_distance2(X, t, off, V, c, inv_scale)
+        if d < best_d or (d == best_d and c < best):
+            best, best_d = c, d
+    return best
+
+
+@njit(cache=True, inline="always")
 def record_with_start(
     m: ModelArrays, e_xs, X, t: int, s: int, a: int, r: float, disc: float, s2: int, sign: int
 ) -> None:
@@ -98,6 +118,15 @@ def relocate(ag: PlanArrays, m: ModelArrays, u: int, w: int) -> None:
     if u >= 0:
         push(heap, hpos, prio, C, u, FIRST)
         push(heap, hpos, prio, C, w, FIRST)
+
+
+@njit(cache=True, inline="always")
+def start_after_growth(ag: PlanArrays, t: int, i: int, grown_from: int) -> int:
+    """The cell that the start of remembered transition ``t``, taken as a decision of cell ``i``, lies in now that
+    the cells from ``grown_from`` on (at most two) were appended during the transition's last step: ``i`` or one
+    of them (:func:`_cell_after`)."""
+    size = ag.S[SIZE]
+    return _cell_after(ag.V, size, ag.mem_x, t, 0, i, grown_from, size - 1, ag.inv_scale)
 
 
 @njit(cache=True, inline="always")

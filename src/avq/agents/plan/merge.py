@@ -27,10 +27,10 @@ import numpy as np
 from numba import njit
 
 from avq.agents.plan import model as _model
-from avq.agents.plan.memory import record_with_start, successor
+from avq.agents.plan.memory import cell_after_merge, record_with_start, successor
 from avq.agents.plan.model import ModelArrays, settled
 from avq.agents.plan.state import GEOM, MEM_N, SIZE, SLOPE_N, SLOPE_SUM, PlanArrays, PlanIntParam, PlanParam
-from avq.quantizer import compact_rows, disjoint_pairs, merge_kernel, nearest_index
+from avq.quantizer import compact_rows, disjoint_pairs, merge_kernel
 from avq.rules import mean_square_difference, merged_decision_leaves, outcome_disagrees, same_greedy_action
 
 __all__ = [
@@ -139,18 +139,26 @@ def exits_after_merge(m: ModelArrays, i: int, j: int, a: int) -> int:
 
 
 @njit(cache=True)
-def rebuild(ag: PlanArrays, m: ModelArrays) -> None:
-    """The model from the memory alone, in the current cells (:func:`avq.agents.plan.model.clear`, then every
-    remembered transition recorded again between the cells of its start and end observations)."""
+def rebuild(ag: PlanArrays, m: ModelArrays, pairs, mapping) -> None:
+    """The model from the memory alone, in the cells after the merges ``pairs`` (old indices) that
+    :func:`avq.quantizer.merge_kernel` mapped by ``mapping``: :func:`avq.agents.plan.model.clear`, then every
+    remembered transition recorded again between the cells its start and end observations now lie in
+    (:func:`avq.agents.plan.memory.cell_after_merge`: the memory's cells are those of the codebook before)."""
     V, inv_scale, mem_x, mem_i, mem_f, e_xs = ag.V, ag.inv_scale, ag.mem_x, ag.mem_i, ag.mem_f, ag.e_xs
     e_xs[: m.C[_model.N_EDGES]] = 0.0
     _model.clear(m)
     n, size = V.shape[1], ag.S[SIZE]
+    half = np.zeros(mapping.shape[0], dtype=np.bool_)
+    merged = np.empty(pairs.shape[0], dtype=np.int64)
+    for q in range(pairs.shape[0]):
+        half[pairs[q, 0]] = True
+        half[pairs[q, 1]] = True
+        merged[q] = mapping[pairs[q, 0]]
     for t in range(ag.S[MEM_N]):
-        cs, _ = nearest_index(V, size, mem_x[t, :n], inv_scale)
+        cs = cell_after_merge(V, size, mem_x, t, 0, mem_i[t, 1], mapping, half, merged, inv_scale)
         ce = mem_i[t, 2]
         if ce >= 0:
-            ce, _ = nearest_index(V, size, mem_x[t, n:], inv_scale)
+            ce = cell_after_merge(V, size, mem_x, t, n, ce, mapping, half, merged, inv_scale)
         mem_i[t, 1] = cs
         mem_i[t, 2] = ce
         target = successor(cs, ce, mem_i[t, 3])
@@ -211,6 +219,6 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
     S[SIZE] = w
     m.C[_model.N_STATES] = w
     S[GEOM] += 1
-    rebuild(ag, m)
+    rebuild(ag, m, pairs, mapping)
     _model.sweep(m, IP[PlanIntParam.N_BACKUPS])
     return merges
