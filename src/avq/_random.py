@@ -30,6 +30,8 @@ from typing import Any, cast
 import numpy as np
 from numba import njit, types
 from numba.extending import overload
+from numba.np.random.generator_core import next_uint32
+from numba.np.random.random_methods import buffered_bounded_lemire_uint32
 
 __all__ = ["RawStream", "uniform", "below", "DRAWS_PER_DECISION"]
 
@@ -119,7 +121,16 @@ def _below(src, n):
     if isinstance(src, types.NumPyRandomGeneratorType):
 
         def from_generator(src, n):
-            return src.integers(0, n)
+            # What Numba's src.integers(0, n) draws (NumPy's bounded Lemire on 32-bit outputs), without the
+            # one-element array it allocates at every call; outside 1 <= n <= 2**32, Numba's own.
+            r = np.int64(n) - np.int64(1)
+            if r == 0:
+                return np.int64(0)
+            if r < 0 or r > 0xFFFFFFFF:
+                return src.integers(0, n)
+            if r == 0xFFFFFFFF:
+                return np.int64(next_uint32(src.bit_generator))
+            return np.int64(buffered_bounded_lemire_uint32(src.bit_generator, r))
 
         return from_generator
     if isinstance(src, types.BaseTuple):

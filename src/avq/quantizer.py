@@ -110,21 +110,29 @@ def neighbours_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray):
     nn = np.full(size, -1, dtype=np.int64)
     d1 = np.full(size, np.inf)
     d2 = np.full(size, np.inf)
+    # Each distance once, for both ends of the pair (the difference negated squares to the same sum): each
+    # vector meets the others in increasing order of index, vector i those before it while they run here.
     for i in range(size):
-        for j in range(size):
-            if j == i:
-                continue
+        nn_i, d1_i, d2_i = nn[i], d1[i], d2[i]
+        for j in range(i + 1, size):
             s = 0.0
             for d in range(n):
                 z = y[i, d] - y[j, d]
                 s += z * z
             dist = np.sqrt(s)
-            if dist < d1[i]:
-                d2[i] = d1[i]
-                d1[i] = dist
-                nn[i] = j
-            elif dist < d2[i]:
-                d2[i] = dist
+            if dist < d1_i:
+                d2_i = d1_i
+                d1_i = dist
+                nn_i = j
+            elif dist < d2_i:
+                d2_i = dist
+            if dist < d1[j]:
+                d2[j] = d1[j]
+                d1[j] = dist
+                nn[j] = i
+            elif dist < d2[j]:
+                d2[j] = dist
+        nn[i], d1[i], d2[i] = nn_i, d1_i, d2_i
     return nn, d1, d2
 
 
@@ -155,6 +163,23 @@ def mutual_nearest_pairs_kernel(
 
 
 @njit(cache=True, nogil=True)
+def _stable_order(values: np.ndarray) -> np.ndarray:
+    """``np.argsort(values, kind="mergesort")`` (ascending, ties in index order) for values without NaN; by
+    insertion up to 64 values (a merge pass sorts a few dozen distances, for which a merge sort costs more)."""
+    if values.shape[0] > 64:
+        return np.argsort(values, kind="mergesort")
+    order = np.empty(values.shape[0], dtype=np.int64)
+    for k in range(values.shape[0]):
+        v = values[k]
+        w = k
+        while w > 0 and v < values[order[w - 1]]:
+            order[w] = order[w - 1]
+            w -= 1
+        order[w] = k
+    return order
+
+
+@njit(cache=True, nogil=True)
 def nearest_pairs_kernel(vectors: np.ndarray, size: int, inv_scale: np.ndarray) -> np.ndarray:
     """Disjoint pairs ``(i, nearest of i)``, closest first, mutual or not (``i < j`` in each pair)."""
     nn, d1, _ = neighbours_kernel(vectors, size, inv_scale)
@@ -166,7 +191,7 @@ def disjoint_pairs(partner: np.ndarray, score: np.ndarray) -> np.ndarray:
     """Disjoint pairs ``(i, partner[i])`` (``-1``: none), lowest ``score[i]`` first (ties by index), each cell in
     one pair at most, written ``i < j``."""
     size = score.shape[0]
-    order = np.argsort(score, kind="mergesort")
+    order = _stable_order(score)
     used = np.zeros(size, dtype=np.bool_)
     out = np.empty((size // 2, 2), dtype=np.int64)
     k = 0

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from avq._numba import borrowed
+from avq._random import below
 from avq.envs.compiled import CompiledMaze, compiled_maze
 from avq.envs.grid_maze import GridDynamics, grid_move, slipped
 from avq.envs.robot_geometry import random_start, robot_move, sonar_ranges
@@ -312,7 +313,7 @@ def maze_start(env_rng, pos, mz) -> None:
     elif mz.robot:
         pos[0], pos[1] = random_start(env_rng, mz.starts, mz.walls, mz.radius, mz.gx, mz.gy)
     else:
-        k = env_rng.integers(0, mz.starts.shape[0])
+        k = below(env_rng, mz.starts.shape[0])  # (env_rng.integers(0, n), without allocating)
         pos[0] = mz.starts[k, 0]
         pos[1] = mz.starts[k, 1]
     pos[2] = 0.0
