@@ -13,10 +13,12 @@ Variants (``--variants``, names below) are ``avq-plan`` on the maze with the ove
 chosen with ``--seeds`` (``0-29``: the seeds the variants were chosen on; ``100-199`` and ``200-299``: held out).
 
     python benchmarks/merging.py --protocol --seeds 0-29
-    python benchmarks/merging.py --protocol --seeds 100-199 --variants no-merge merge+cycle+radius
-    python benchmarks/merging.py --resolution --seeds 0-4 --variants no-merge merge+cycle+radius
-    python benchmarks/merging.py --robot --seeds 0-9 --variants merge+cycle+radius
-    python benchmarks/merging.py --generated --seeds 0-4 --variants merge+cycle+radius
+    python benchmarks/merging.py --protocol --seeds 100-199 --variants no-merge merge merge+cycle+radius
+    python benchmarks/merging.py --protocol --seeds 200-299 --variants merge merge+cycle+radius
+    python benchmarks/merging.py --resolution --seeds 0-4 --variants no-merge merge merge+cycle+radius
+    python benchmarks/merging.py --robot --seeds 0-9 --variants merge merge+cycle+radius
+    python benchmarks/merging.py --robot --seeds 10-19 --variants no-merge merge merge+cycle+radius
+    python benchmarks/merging.py --generated --seeds 0-4 --variants merge merge+cycle+radius
 """
 
 from __future__ import annotations
@@ -136,7 +138,7 @@ def steps_study(family: str, args: argparse.Namespace, seeds: list[int], sizes, 
     ]
     rows = Parallel(n_jobs=args.jobs)(jobs)
     slip = f"_slip{args.slip:g}" if args.slip else ""
-    write(Path(args.out) / f"merging_{family}{slip}.csv", STEPS_FIELDS, rows)
+    write(Path(args.out) / f"merging_{family}{slip}_seeds{args.seeds}.csv", STEPS_FIELDS, rows)
     print(
         f"| variant | {'k' if family == 'resolution' else 'move' if family == 'robot' else 'side'} | reached 95% | "
         "env steps median [range] | cells median [range] |"

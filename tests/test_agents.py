@@ -360,8 +360,6 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert robot.get_params() == {
         **avq.make_agent("avq-plan", "avq/RobotMaze-v0").get_params(),
         "rho": 25.0,
-        "cycle_split": True,
-        "known_radius": 0.3,
     }
     general = avq.make_agent("avq", gym.make("MountainCar-v0"))
     assert isinstance(general, avq.PlanningAVQ) and agent_class("avq", "MountainCar-v0") is avq.PlanningAVQ
