@@ -172,7 +172,7 @@ def planner_backups_per_second(name: str, reps: int = 200) -> float:
     return best
 
 
-#: avq-plan with merging under its model (as avq on the robot: benchmarks/merging.py's merge+cycle+radius).
+#: avq-plan with merging under its model, the grid maze's variant (benchmarks/merging.py's merge+cycle+radius).
 MERGING = {"rho": 25.0, "cycle_split": True, "known_radius": 0.3}
 
 
@@ -321,7 +321,7 @@ def main() -> None:
         f"sweeps by hand, {ref_b / 1e6:.1f} M backups/s)"
     )
     print(
-        f"   {'agent':<10} {'M steps/s learning':>19} {'once learned':>13} {'planner M backups/s':>20} "
+        f"   {'agent':<16} {'M steps/s learning':>19} {'once learned':>13} {'planner M backups/s':>20} "
         f"{'of reference':>13} {'cells':>6}"
     )
     for name, overrides in (("avq-plan", None), ("tabular-ps", None), ("avq-plan", MERGING)):
@@ -329,7 +329,7 @@ def main() -> None:
         rate = planner_backups_per_second(name)
         label = name + (" merging" if overrides else "")
         print(
-            f"   {label:<10} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
+            f"   {label:<16} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
             f"{cells:>6}  ({fresh / ref:.0%} of the fused reference while learning)"
         )
 
