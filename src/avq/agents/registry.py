@@ -198,8 +198,8 @@ def make_agent(name: str, env: gym.Env | str, seed: int | None = None, **overrid
     """Create the agent registered as ``name`` with its defaults, updated by ``overrides``.
 
     The names, with each one's rules and defaults, are in ``avq/agents/defaults/``. Some agents have
-    defaults of their own on some environments: ``avq`` on ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0``
-    uses the collision-driven maze rules. The environment is recognised by its registered id
+    defaults of their own on some environments: ``avq`` on ``avq/GridMaze-v0`` uses the collision-driven maze
+    rules, and on ``avq/RobotMaze-v0`` the planning agent with merging. The environment is recognised by its registered id
     (``env.spec.id``, or the id registered for its class when it was built without ``gymnasium.make``);
     a wrapper that changes the observations (as :class:`avq.envs.IrrelevantDims` does) makes it another
     task, which gets the general defaults.
