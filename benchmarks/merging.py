@@ -40,6 +40,7 @@ from avq.reproduce import train_maze_run  # noqa: E402
 #: Each variant's overrides of ``avq-plan``'s maze entry.
 VARIANTS = {
     "no-merge": {},
+    "cycle": {"cycle_split": True},
     "merge-profiles": {"rho": 25.0, "merge_same_action": False},
     "merge": {"rho": 25.0},
     "merge+cycle": {"rho": 25.0, "cycle_split": True},

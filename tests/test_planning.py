@@ -386,3 +386,25 @@ def test_the_models_public_queue_and_sweep_back_up_a_queued_state():
     assert model.sweep(1) == 1 and model.queued == 1  # the budget: one backup
     assert model.sweep(10) == 1 and model.queued == 0
     assert model.backups == before + 2
+
+
+def test_the_maze_entry_lets_neighbouring_squares_of_a_wide_maze_be_cells_of_their_own():
+    """The grid maze's ``d_min`` is a fraction of the maze's width (``scale`` None: the bounds' range), so it must
+    stay under one square on wide mazes, or the planner cannot cut a corridor from the squares beside it and gets
+    stuck (docs/results/merging.md, Resolution). 101 squares wide, one square is 0.01 of the width: 0.02 would keep
+    two squares of a row from both being vectors; the entry's 0.001 does not. The robot keeps its own 0.02."""
+    def row_neighbours(agent) -> int:
+        v = agent.codebook_
+        dx, dy = np.abs(v[:, None, 0] - v[None, :, 0]), np.abs(v[:, None, 1] - v[None, :, 1])
+        return int(np.sum((dx == 1.0) & (dy == 0.0)) // 2)
+
+    layout = ["G" + "." * 100, "." * 101]
+
+    def maze():
+        return gym.make("avq/GridMaze-v0", layout=layout, max_episode_steps=400)
+
+    entry = avq.make_agent("avq-plan", maze(), seed=0).learn(total_episodes=20)
+    coarse = avq.make_agent("avq-plan", maze(), seed=0, d_min=0.02).learn(total_episodes=20)
+    assert entry.d_min < 1 / 100 and row_neighbours(entry) > 0
+    assert row_neighbours(coarse) == 0
+    assert avq.make_agent("avq-plan", "avq/RobotMaze-v0").d_min == 0.02
