@@ -393,6 +393,7 @@ def test_the_maze_entry_lets_neighbouring_squares_of_a_wide_maze_be_cells_of_the
     stay under one square on wide mazes, or the planner cannot cut a corridor from the squares beside it and gets
     stuck (docs/results/merging.md, Resolution). 101 squares wide, one square is 0.01 of the width: 0.02 would keep
     two squares of a row from both being vectors; the entry's 0.001 does not. The robot keeps its own 0.02."""
+
     def row_neighbours(agent) -> int:
         v = agent.codebook_
         dx, dy = np.abs(v[:, None, 0] - v[None, :, 0]), np.abs(v[:, None, 1] - v[None, :, 1])
