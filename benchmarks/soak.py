@@ -129,8 +129,8 @@ def agent_array_bytes(agent) -> int:
 
 def soak(steps: int, every: int, seed: int) -> tuple[list[dict], dict]:
     env = gym.make(ENV_ID)
-    # The general defaults (value-change trigger; unbounded growth is what a soak should exercise), not
-    # the maze rules that make_agent("avq", RobotMaze) takes by default.
+    # The general Sarsa(λ) defaults (value-change trigger; unbounded growth is what a soak should exercise),
+    # not the planning agent that make_agent("avq", RobotMaze) is.
     agent = avq.AVQSarsa(env, seed=seed, **avq.AGENTS[AGENT][1])
     info = {
         "max_cells": agent.max_cells,

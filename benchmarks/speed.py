@@ -173,19 +173,15 @@ def planner_backups_per_second(name: str, reps: int = 200) -> float:
 
 
 #: avq-plan with merging under its model, the grid maze's variant (benchmarks/merging.py's merge+cycle+radius).
-MERGING = {"rho": 25.0, "cycle_split": True, "known_radius": 0.3}
 
 
-def planning_steps_per_second(
-    name: str, episodes: int, overrides: dict | None = None
-) -> tuple[float, float, float, int]:
+def planning_steps_per_second(name: str, episodes: int) -> tuple[float, float, float, int]:
     """``(steps/s while learning from scratch, steps/s once learned, backups/s while learning, cells)`` on the
     fused path, the best of 3 runs (the first episodes of the first run compile nothing: warmed up before)."""
-    overrides = overrides or {}
-    avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=99, **overrides).learn(total_episodes=5)  # compile
+    avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=99).learn(total_episodes=5)  # compile
     fresh = learned = rate = 0.0
     for rep in range(3):
-        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep, **overrides)
+        agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=rep)
         t = time.perf_counter()
         agent.learn(total_episodes=episodes)
         dt = time.perf_counter() - t
@@ -311,7 +307,7 @@ def main() -> None:
     ref = reference_steps_per_second(int(5_000_000 * scale))
     print(f"\n1. fused training on GridMaze lau2002 (reference: Numba tabular Sarsa(λ), {ref / 1e6:.2f} M steps/s)")
     print(f"   {'agent':<10} {'M steps/s':>10} {'of reference':>13} {'cells':>6}")
-    for name in ("avq-paper", "avq", "tabular"):
+    for name in ("avq-paper", "avq-maze", "tabular"):
         sps, cells = avq_fused_steps_per_second(name, int(10000 * scale) or 100)
         print(f"   {name:<10} {sps / 1e6:>10.2f} {sps / ref:>12.0%} {cells:>6}")
 
@@ -324,10 +320,11 @@ def main() -> None:
         f"   {'agent':<16} {'M steps/s learning':>19} {'once learned':>13} {'planner M backups/s':>20} "
         f"{'of reference':>13} {'cells':>6}"
     )
-    for name, overrides in (("avq-plan", None), ("tabular-ps", None), ("avq-plan", MERGING)):
-        fresh, learned, _, cells = planning_steps_per_second(name, int(2000 * scale) or 100, overrides)
+    # avq on the grid maze: avq-plan's maze entry with merging (rho 25, known_radius 0.3).
+    for name in ("avq-plan", "tabular-ps", "avq"):
+        fresh, learned, _, cells = planning_steps_per_second(name, int(2000 * scale) or 100)
         rate = planner_backups_per_second(name)
-        label = name + (" merging" if overrides else "")
+        label = name + (" (merging)" if name == "avq" else "")
         print(
             f"   {label:<16} {fresh / 1e6:>19.2f} {learned / 1e6:>13.2f} {rate / 1e6:>20.1f} {rate / ref_b:>12.0%} "
             f"{cells:>6}  ({fresh / ref:.0%} of the fused reference while learning)"

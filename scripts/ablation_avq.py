@@ -1,4 +1,4 @@
-"""The ablation of the ``avq`` agent on grid mazes: each option switched off (or on) in turn.
+"""The ablation of the Sarsa(λ) agent that ``avq`` was on grid mazes: each option switched off (or on) in turn.
 
 Every row trains for 1000 trials from random starts and walks the greedy policy from
 every start (``avq.evaluate_maze``):
@@ -28,35 +28,41 @@ from joblib import Parallel, delayed
 from avq.envs import random_layout
 from avq.reproduce import train_maze_run
 
-#: row label -> (registered agent, overrides). "avq" on the grid maze has the maze defaults.
+#: The Sarsa(λ) agent that ``avq`` was on the grid maze until the planner with merging replaced it: the maze
+#: rules (``avq-maze``) with the cycle split and a decaying exploration rate. The rows switch one option from it.
+SARSA_AVQ = {"cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01}
+#: row label -> (registered agent, overrides); "avq" is SARSA_AVQ.
 ROWS: dict[str, tuple[str, dict]] = {
-    "avq": ("avq", {}),
-    "no cycle split": ("avq", {"cycle_split": False}),
-    "no collision split": ("avq", {"collision_split": False}),
-    "neither split": ("avq", {"cycle_split": False, "collision_split": False}),
-    "merge pairs: mutual (the paper)": ("avq", {"merge_pairs": "mutual"}),
-    "merge guard: same action": ("avq", {"merge_same_action": True}),
-    "merge guard: 2 episodes": ("avq", {"merge_age": 2}),
-    "no merging": ("avq", {"merge_every": 0}),
-    "no cell cap": ("avq", {"max_cells": 10_000}),
-    "make room at the cap": ("avq", {"make_room": True}),
-    "constant epsilon 0.05 (no schedule)": ("avq", {"epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
-    "constant epsilon 0.05 and no cycle split (avq-maze)": (
-        "avq",
-        {"epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0, "cycle_split": False},
+    "avq": ("avq-maze", SARSA_AVQ),
+    "no cycle split": ("avq-maze", {**SARSA_AVQ, "cycle_split": False}),
+    "no collision split": ("avq-maze", {**SARSA_AVQ, "collision_split": False}),
+    "neither split": ("avq-maze", {**SARSA_AVQ, "cycle_split": False, "collision_split": False}),
+    "merge pairs: mutual (the paper)": ("avq-maze", {**SARSA_AVQ, "merge_pairs": "mutual"}),
+    "merge guard: same action": ("avq-maze", {**SARSA_AVQ, "merge_same_action": True}),
+    "merge guard: 2 episodes": ("avq-maze", {**SARSA_AVQ, "merge_age": 2}),
+    "no merging": ("avq-maze", {**SARSA_AVQ, "merge_every": 0}),
+    "no cell cap": ("avq-maze", {**SARSA_AVQ, "max_cells": 10_000}),
+    "make room at the cap": ("avq-maze", {**SARSA_AVQ, "make_room": True}),
+    "constant epsilon 0.05 (no schedule)": (
+        "avq-maze",
+        {**SARSA_AVQ, "epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0},
     ),
-    "alpha 0.5 decaying by 0.998 to 0.05": ("avq", {"alpha_decay": 0.998, "alpha_min": 0.05}),
-    "vectors adapt: rate 0.01": ("avq", {"adapt_rate": 0.01}),
-    "vectors adapt: rate 0.05": ("avq", {"adapt_rate": 0.05}),
-    "pruning: after 10 episodes": ("avq", {"prune_after": 10}),
-    "pruning: after 50 episodes": ("avq", {"prune_after": 50}),
-    "count-based bonus 0.5": ("avq", {"explore_bonus": 0.5}),
-    "count-based bonus 1": ("avq", {"explore_bonus": 1.0}),
-    "count-based bonus 5": ("avq", {"explore_bonus": 5.0}),
-    "count-based bonus 5 with q_init 0": ("avq", {"explore_bonus": 5.0, "q_init": 0.0}),
-    "no optimism: q_init 0": ("avq", {"q_init": 0.0}),
-    "more optimism: q_init 20": ("avq", {"q_init": 20.0}),
-    "optimism only: epsilon 0": ("avq", {"epsilon": 0.0, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
+    "constant epsilon 0.05 and no cycle split (avq-maze)": (
+        "avq-maze",
+        {**SARSA_AVQ, "epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0, "cycle_split": False},
+    ),
+    "alpha 0.5 decaying by 0.998 to 0.05": ("avq-maze", {**SARSA_AVQ, "alpha_decay": 0.998, "alpha_min": 0.05}),
+    "vectors adapt: rate 0.01": ("avq-maze", {**SARSA_AVQ, "adapt_rate": 0.01}),
+    "vectors adapt: rate 0.05": ("avq-maze", {**SARSA_AVQ, "adapt_rate": 0.05}),
+    "pruning: after 10 episodes": ("avq-maze", {**SARSA_AVQ, "prune_after": 10}),
+    "pruning: after 50 episodes": ("avq-maze", {**SARSA_AVQ, "prune_after": 50}),
+    "count-based bonus 0.5": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 0.5}),
+    "count-based bonus 1": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 1.0}),
+    "count-based bonus 5": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 5.0}),
+    "count-based bonus 5 with q_init 0": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 5.0, "q_init": 0.0}),
+    "no optimism: q_init 0": ("avq-maze", {**SARSA_AVQ, "q_init": 0.0}),
+    "more optimism: q_init 20": ("avq-maze", {**SARSA_AVQ, "q_init": 20.0}),
+    "optimism only: epsilon 0": ("avq-maze", {**SARSA_AVQ, "epsilon": 0.0, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
     "avq-paper": ("avq-paper", {}),
     "tabular": ("tabular", {}),
 }

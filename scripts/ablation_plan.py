@@ -33,11 +33,12 @@ import avq
 from avq.envs import parse_layout, random_layout, refine_layout
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from ablation_avq import SARSA_AVQ  # noqa: E402  (the Sarsa(λ) agent avq was on the grid maze)
 from scaling import learn_until  # noqa: E402
 
 VARIANTS = {
     "default": ("avq-plan", {}),
-    "no model (avq)": ("avq", {"max_cells": 1_000_000}),
+    "no model (avq)": ("avq-maze", {**SARSA_AVQ, "max_cells": 1_000_000}),
     "no optimism": ("avq-plan", {"v_opt": -10_000.0, "epsilon": 0.1}),
     "no collision growth": ("avq-plan", {"collision_growth": False}),
     "no outcome split": ("avq-plan", {"outcome_split": False}),

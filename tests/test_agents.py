@@ -344,19 +344,19 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     from avq.agents.registry import AGENTS, DEFAULTS, agent_class, agent_defaults
 
     maze = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=0)
+    # On both mazes: the planning agent of avq-plan's maze entries, merging under its model; on the grid maze a
+    # decision never tried near the current square is also tried while learning (known_radius).
     assert maze.get_params() == {
-        **avq.make_agent("avq-maze", "avq/GridMaze-v0").get_params(),
-        "cycle_split": True,
-        "epsilon": 0.2,
-        "epsilon_decay": 0.995,
-        "epsilon_min": 0.01,
+        **avq.make_agent("avq-plan", "avq/GridMaze-v0").get_params(),
+        "rho": 25.0,
+        "known_radius": 0.3,
         "seed": 0,
     }
     from avq.envs import GridMaze
 
     assert avq.make_agent("avq", GridMaze(), seed=0).get_params() == maze.get_params()  # built without gym.make
     robot = avq.make_agent("avq", "avq/RobotMaze-v0")
-    assert isinstance(maze, AVQSarsa) and isinstance(robot, avq.PlanningAVQ)
+    assert isinstance(maze, avq.PlanningAVQ) and isinstance(robot, avq.PlanningAVQ)
     assert robot.get_params() == {
         **avq.make_agent("avq-plan", "avq/RobotMaze-v0").get_params(),
         "rho": 25.0,
@@ -367,9 +367,9 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
     assert general.split_after == 5 and general.v_opt == "auto"
     assert AGENTS["avq"][1] == DEFAULTS["avq-plan"]["*"]  # (one set of general defaults for the planning agent)
     # Explicit overrides win over the task's defaults; the task's defaults replace all of the name's.
-    assert avq.make_agent("avq", "avq/GridMaze-v0", cycle_split=False, d_min=2.0).get_params()["d_min"] == 2.0
+    assert avq.make_agent("avq", "avq/GridMaze-v0", cycle_split=True, d_min=0.01).get_params()["d_min"] == 0.01
     assert agent_defaults("avq", "avq/GridMaze-v0") == DEFAULTS["avq"]["avq/GridMaze-v0"]
-    assert "merge_age" not in agent_defaults("avq", "avq/GridMaze-v0")
+    assert "merge_age" not in agent_defaults("avq", "avq/GridMaze-v0")  # (avq-maze's, not the planner's)
     assert agent_defaults("avq", "MountainCar-v0") == AGENTS["avq"][1]
     # CartPole-v1's entry is the general defaults with ε-greedy exploration on top of the optimism, and the pole's
     # dimensions twice as weighty as the cart's.
@@ -394,6 +394,25 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
         agent_defaults("nope")
 
 
+def test_an_agent_whose_class_depends_on_the_task_names_the_task_and_class_in_its_errors(monkeypatch):
+    # An entry of a defaults file may name its own class (`class:`); none of the package's does today, so the
+    # grid maze's entry of avq is made the Sarsa(λ) maze agent's here.
+    from avq.agents import registry
+
+    maze_rules = registry.ENTRIES["avq-maze"]["*"]
+    monkeypatch.setitem(registry.ENTRIES["avq"], "avq/GridMaze-v0", maze_rules)
+    monkeypatch.setitem(registry.DEFAULTS["avq"], "avq/GridMaze-v0", maze_rules.params)
+    assert isinstance(make_agent("avq", "avq/GridMaze-v0"), AVQSarsa)
+    with pytest.raises(ValueError, match=r"^unknown parameter 'alpha' for agent 'avq' on MountainCar-v0 \(class Pl"):
+        make_agent("avq", "MountainCar-v0", alpha=0.2)
+    with pytest.raises(
+        ValueError,
+        match="agent 'avq' has no model on avq/GridMaze-v0; "
+        "the agents that plan on avq/GridMaze-v0 are 'avq-plan', 'grid-ps', 'tabular-ps'$",
+    ):
+        make_agent("avq", "avq/GridMaze-v0", n_backups=10)
+
+
 def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_values_in_force():
     from avq.agents.registry import AGENTS, DEFAULTS, defaults_key
 
@@ -414,7 +433,8 @@ def test_make_agent_records_which_defaults_it_used_and_get_params_shows_the_valu
     space = general.env.observation_space
     assert general.get_params()["scale"] == "auto"
     assert np.array_equal(general.scale_, np.asarray(space.high, np.float64) - np.asarray(space.low, np.float64))
-    assert np.array_equal(maze.scale_, [1.0, 1.0]) and maze.get_params()["scale"] == 1.0
+    # scale None: the observation bounds' range (lau2002: 13 x 11 squares), so d_min is a fraction of the maze.
+    assert np.array_equal(maze.scale_, [13.0, 11.0]) and maze.get_params()["scale"] is None
     assert AVQSarsa("avq/GridMaze-v0").defaults_used is None  # built directly: the signature's defaults
     assert defaults_key("avq", "MountainCar-v0") == "*" and defaults_key("tabular", "avq/GridMaze-v0") == "*"
     assert defaults_key("avq", "CartPole-v1") == "CartPole-v1"
@@ -483,4 +503,4 @@ def test_the_defaults_files_resolve_bases_and_carry_a_reason_and_a_link(tmp_path
         "epsilon": 0.01,
         "scale_factor": [1.0, 1.0, 0.5, 0.5],
     }
-    assert ENTRIES["avq"]["avq/GridMaze-v0"].cls is AVQSarsa and ENTRIES["avq"]["*"].cls is avq.PlanningAVQ
+    assert ENTRIES["avq"]["avq/GridMaze-v0"].cls is avq.PlanningAVQ and ENTRIES["avq-maze"]["*"].cls is AVQSarsa

@@ -98,7 +98,7 @@ def test_train_says_which_defaults_it_took(tmp_path, capsys):
         "agent avq on MountainCar-v0: the general defaults of avq (avq/agents/defaults/avq.yaml, entry '*'); "
         "explicit: d_min=0.2"
     )
-    # avq's class depends on the task: a parameter of the maze agent is refused elsewhere, naming the class.
+    # A parameter of the Sarsa(λ) agents is refused for the planner, naming the parameters it has.
     assert (
         main(
             [
@@ -117,7 +117,7 @@ def test_train_says_which_defaults_it_took(tmp_path, capsys):
         == 2
     )
     assert capsys.readouterr().err.startswith(
-        "avq: error: unknown parameter 'alpha' for agent 'avq' on MountainCar-v0 (class PlanningAVQ); its parameters: "
+        "avq: error: unknown parameter 'alpha' for agent 'avq'; its parameters: collision_growth, cycle_split, "
     )
 
 

@@ -131,7 +131,7 @@ def test_the_anchors_are_those_of_labelling_the_grid_once_per_cell():
 
 def test_the_arrows_of_a_trained_agent_lie_on_their_own_cells():
     env = gym.make("avq/GridMaze-v0", layout="lau2002")
-    agent = make_agent("avq", env, seed=0).learn(total_episodes=300)
+    agent = make_agent("avq", env, seed=2).learn(total_episodes=300)  # (a seed where the case below arises)
     recorder = PartitionRecorder(gym.make("avq/GridMaze-v0", layout="lau2002"))
     view = partition_view(agent, recorder.maze)
     assert all(view.cells[i] == c for c, i in view.anchors)

@@ -10,8 +10,11 @@ import avq
 #: The general Sarsa(λ) defaults (``avq-sarsa``: the value-change trigger, the maze options at the class's
 #: defaults), with the budget of before.
 GENERAL = ("avq-sarsa", {"max_cells": 10_000})
-#: Every rule of the kernels: the paper's, the maze defaults (with the splits), the general defaults.
-VARIANTS = [("avq-paper", {}), ("avq", {}), GENERAL]
+#: The Sarsa(λ) maze rules with the cycle split and a decaying epsilon (``avq`` on the grid maze before the planner).
+MAZE = ("avq-maze", {"cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01})
+#: Every rule of the kernels: the paper's, the maze rules (with the splits), the general defaults; and ``avq`` on
+#: the maze, the planner with merging.
+VARIANTS = [("avq-paper", {}), MAZE, GENERAL, ("avq", {})]
 
 
 def run(name, fused, seed, overrides=None, **learn):
@@ -32,8 +35,8 @@ def same(a, b):
 
 @pytest.mark.parametrize(
     "name, overrides",
-    VARIANTS + [("avq", {"explore_bonus": 2.0, "prune_after": 20, "make_room": True})],
-    ids=["avq-paper", "avq", "avq-general", "avq-bonus-prune"],
+    VARIANTS + [("avq-maze", {**MAZE[1], "explore_bonus": 2.0, "prune_after": 20, "make_room": True})],
+    ids=["avq-paper", "avq-maze", "avq-general", "avq", "avq-bonus-prune"],
 )
 @pytest.mark.parametrize("seed", [0, 1])
 def test_fused_and_generic_paths_are_identical(name, overrides, seed):
@@ -80,7 +83,7 @@ def test_other_wrappers_fall_back_to_the_generic_path():
 @pytest.mark.parametrize(
     "name, overrides",
     VARIANTS + [("avq-maze", {"cycle_split": True, "explore_bonus": 2.0, "max_cells": 10_000})],
-    ids=["avq-paper", "avq", "avq-general", "avq-maze-cycle-split-bonus"],
+    ids=["avq-paper", "avq-maze", "avq-general", "avq", "avq-maze-cycle-split-bonus"],
 )
 def test_fused_robot_maze_is_identical_to_the_generic_path(name, overrides, kwargs):
     runs = []

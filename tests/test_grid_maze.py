@@ -605,13 +605,13 @@ def test_the_slip_rule_draws_as_documented():
     assert slipped.py_func(rng, 2, 0.4) == ((2 + 1 + 2 * int(twin.integers(0, 2))) % 4 if twin.random() < 0.4 else 2)
 
 
-@pytest.mark.parametrize("name", ["avq-paper", "avq", "tabular"])
+@pytest.mark.parametrize("name", ["avq-paper", "avq-maze", "avq", "tabular"])
 def test_fused_and_generic_training_on_a_slippery_maze_are_identical(name):
     runs = []
     for fused in (True, False):
         agent = avq.make_agent(name, gym.make("avq/GridMaze-v0", slip=0.1), seed=4, fused=fused)
-        assert (agent._fused_runner() is not None) == fused
         runs.append(agent.learn(total_episodes=120).learn(total_timesteps=333))
+        assert (agent._fused_runner() is not None) == fused
     a, b = runs
     assert np.array_equal(a.q_, b.q_)
     for key in ("steps", "return", "n_cells"):

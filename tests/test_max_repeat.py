@@ -93,7 +93,7 @@ def same(a, b):
         assert np.array_equal(ha[key], hb[key]), key
 
 
-@pytest.mark.parametrize("name", ["avq", "avq-paper"])
+@pytest.mark.parametrize("name", ["avq-maze", "avq-paper"])
 def test_the_fused_maze_loop_and_the_generic_path_agree_with_max_repeat(name):
     def run(fused, max_repeat):
         agent = avq.make_agent(name, gym.make("avq/GridMaze-v0"), seed=1, fused=fused, max_repeat=max_repeat)

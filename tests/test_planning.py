@@ -183,10 +183,10 @@ def test_bad_planning_options_get_clear_errors():
         avq.make_agent("avq-plan", env, known_after=0)
     with pytest.raises(
         ValueError,
-        match="'n_backups' is an option of planning.*'avq' has no model on avq/GridMaze-v0; "
-        "the agents that plan on avq/GridMaze-v0 are 'avq-plan', 'grid-ps', 'tabular-ps'$",
+        match="'n_backups' is an option of planning.*'avq-maze' has no model; "
+        "the agents that plan are 'avq', 'avq-plan', 'grid-ps', 'tabular-ps'$",
     ):
-        avq.make_agent("avq", env, n_backups=10)
+        avq.make_agent("avq-maze", env, n_backups=10)
     with pytest.raises(ValueError, match=r"split_threshold must be in \(0.0, inf\), not 0"):
         avq.make_agent("avq-plan", env, split_threshold=0)
 

@@ -124,9 +124,9 @@ def test_progress_log_repairs_a_torn_line_and_drops_rows_past_the_checkpoint(tmp
 
 
 def test_a_run_written_before_an_option_existed_resumes_with_the_option_off(tmp_path):
-    # A run of `avq` on the grid maze from a version without cycle_split and the later options: its
-    # config.yml lacks them, and so does its checkpoint (here: written with them off). Resuming must take
-    # the class's defaults for them (off), not the maze defaults of `avq` (cycle_split on).
+    # A run of `avq` on the grid maze from a version without merging and known_radius: its config.yml lacks
+    # them, and so does its checkpoint (here: written with them off). Resuming must take the class's defaults
+    # for them (off), not the maze defaults of `avq` (rho 25, known_radius 0.3).
     import yaml
 
     from avq.runs import resume_train, train
@@ -140,10 +140,10 @@ def test_a_run_written_before_an_option_existed_resumes_with_the_option_off(tmp_
         out=out,
         checkpoint_every=10,
         progress=False,
-        params={"cycle_split": False},
+        params={"rho": None, "known_radius": None},
     )
     config = yaml.safe_load((out / "config.yml").read_text())
-    for key in ("cycle_split", "adapt_rate", "prune_after", "alpha_decay", "alpha_min"):
+    for key in ("rho", "known_radius", "merge_neighbours", "merge_same_action"):
         del config["params"][key]
     (out / "config.yml").write_text(yaml.safe_dump(config))
     finished = avq.load(out / "model.zip")
@@ -151,5 +151,5 @@ def test_a_run_written_before_an_option_existed_resumes_with_the_option_off(tmp_
     (out / "summary.json").unlink()
     resume_train(out, progress=False)
     resumed = avq.load(out / "model.zip")
-    assert not resumed.cycle_split and resumed.num_episodes == 30
+    assert resumed.rho is None and resumed.known_radius is None and resumed.num_episodes == 30
     assert np.array_equal(resumed.q_, finished.q_)

@@ -5,7 +5,7 @@ as RL Zoo keeps hyper-parameters per environment: a ``"*"`` entry used everywher
 environments, an entry that replaces it (all of it) there. An entry holds a one-line ``reason``, a
 link to the ``results`` that chose it, its ``params``, and may start from another entry
 (``base: {agent: ..., entry: ...}``, its params then added on top) or name another class
-(``class``: ``avq`` is Sarsa(λ) on the two mazes). A file's ``search`` is the space ``avq tune`` searches
+(``class``; none of the package's files does so today). A file's ``search`` is the space ``avq tune`` searches
 (:data:`SEARCH`; :mod:`avq.tune` reads it). Explicit parameters given to :func:`make_agent`
 win over the entry; the class's own signature defaults fill in what an entry leaves out.
 :func:`make_agent` records on the agent which entry it used (``agent.defaults_used``, a
@@ -166,8 +166,8 @@ def defaults_key(name: str, env_id: str | None = None) -> str:
 
 
 def agent_class(name: str, env_id: str | None = None) -> type[BaseAgent]:
-    """The class of agent ``name`` on environment ``env_id`` (``avq`` is the planning agent on tasks without
-    collisions, and Sarsa(λ) on the mazes)."""
+    """The class of agent ``name`` on environment ``env_id`` (an entry of the agent's defaults file may name
+    its own)."""
     key = defaults_key(name, env_id)  # (an unknown name raises here)
     return ENTRIES[name][key].cls
 
