@@ -8,6 +8,9 @@ Two studies, each a CSV under ``docs/data/`` and a table printed:
 * ``--resolution``, ``--robot``, ``--generated``: env steps to 95% greedy success, and the cells then, on
   ``lau2002`` refined k x k, on ``avq/RobotMaze-v0`` with finer moves, and on generated mazes of growing
   side (``--slip 0.1``: slippery), as ``benchmarks/scaling.py`` measures its agents on the same mazes.
+* ``--new``: env steps to 95% on mazes never used to choose anything (two made by hand, one of corridors one
+  square wide and one without border walls, and generated layouts of other seeds than the tuning ones'), for
+  agents by name (``--agents``: ``avq`` beside the baselines), deterministic or with ``--slip``.
 
 Variants (``--variants``, names below) are ``avq-plan`` on the maze with the overrides listed; seeds are
 chosen with ``--seeds`` (``0-29``: the seeds the variants were chosen on; ``100-199`` and ``200-299``: held out).
@@ -19,6 +22,7 @@ chosen with ``--seeds`` (``0-29``: the seeds the variants were chosen on; ``100-
     python benchmarks/merging.py --robot --seeds 0-9 --variants merge merge+cycle+radius
     python benchmarks/merging.py --robot --seeds 10-19 --variants no-merge merge merge+cycle+radius
     python benchmarks/merging.py --generated --seeds 0-4 --variants merge merge+cycle+radius
+    python benchmarks/merging.py --new --seeds 0-4 --agents avq tabular-ps tiles
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import csv
 import sys
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 from joblib import Parallel, delayed
 
@@ -35,6 +40,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from scaling import learn_until, maze_factory  # noqa: E402
 
 import avq  # noqa: E402
+from avq.envs import parse_layout, random_layout  # noqa: E402
 from avq.reproduce import train_maze_run  # noqa: E402
 
 #: Each variant's overrides of ``avq-plan``'s maze entry.
@@ -46,7 +52,44 @@ VARIANTS = {
     "merge+cycle": {"rho": 25.0, "cycle_split": True},
     "merge+radius": {"rho": 25.0, "known_radius": 0.3},
     "merge+cycle+radius": {"rho": 25.0, "cycle_split": True, "known_radius": 0.3},
+    # The ablation of merge+radius (``avq`` on the grid maze): one rule off or changed at a time.
+    "radius": {"known_radius": 0.3},
+    "merge+radius, no collision growth": {"rho": 25.0, "known_radius": 0.3, "collision_growth": False},
+    "merge+radius, no outcome split": {"rho": 25.0, "known_radius": 0.3, "outcome_split": False},
+    "merge+radius, no optimism": {"rho": 25.0, "known_radius": 0.3, "v_opt": -10_000.0, "epsilon": 0.1},
+    "merge+radius, known after 3": {"rho": 25.0, "known_radius": 0.3, "known_after": 3},
 }
+#: ``--new``: mazes never used to choose a setting. Two made by hand (47 and 89 squares), and generated
+#: layouts of the tuning mazes' sides with other seeds (the tuning mazes are ``seed=1000 + side``).
+NEW_MAZES = {
+    "corridors": [
+        "#############",
+        "#S#.......#G#",
+        "#.#.#####.#.#",
+        "#.#.#...#.#.#",
+        "#.#.#.#.#.#.#",
+        "#...#.#...#.#",
+        "#####.#####.#",
+        "#...........#",
+        "#############",
+    ],
+    "no-border": [
+        "S...........",
+        "............",
+        "..#######...",
+        "........#...",
+        "........#.#.",
+        "..#.....#.#G",
+        "..#.....###.",
+        "..#.........",
+        "..#.........",
+    ],
+    **{f"held-out-{side}": random_layout(side, side, 0.2, seed=3000 + side) for side in (22, 42, 62)},
+}
+NEW_FIELDS = ("agent", "maze", "squares", "slip", "seed", "reached", "env_steps", "cells")
+#: ``--new``: what each agent gets beyond its defaults here (no budget of cells: the runs measure growth).
+UNCAPPED = {"max_cells": 1_000_000}
+NEW_AGENTS = {"avq": UNCAPPED, "avq-plan": UNCAPPED, "tabular-ps": {}, "tiles": {}, "avq-maze": UNCAPPED}
 PROTOCOL_FIELDS = ("variant", "seed", "cells", "success", "path_ratio", "env_steps", "meets")
 STEPS_FIELDS = ("variant", "size", "seed", "reached", "env_steps", "cells")
 #: Each family of mazes: its sizes (k, move or side) and its default budget of env steps.
@@ -84,6 +127,53 @@ def steps_row(family: str, variant: str, size: float, seed: int, budget: int, sl
     )
 
 
+def new_row(agent_name: str, maze: str, seed: int, budget: int, slip: float) -> dict:
+    rows = NEW_MAZES[maze]
+    limit = 4 * (len(rows) + len(rows[0]))
+    make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit, slip=slip)  # noqa: E731
+    agent = avq.make_agent(agent_name, make(), seed=seed, **NEW_AGENTS[agent_name])
+    walks = make()
+    if slip:
+        walks.reset(seed=10_000 + seed)
+    reached, _, _ = learn_until(agent, walks, budget, 0.95, max_steps=limit)
+    return dict(
+        agent=agent_name,
+        maze=maze,
+        squares=parse_layout(rows).n_states,
+        slip=slip,
+        seed=seed,
+        reached=reached,
+        env_steps=agent.num_timesteps,
+        cells=agent.n_cells,
+    )
+
+
+def new_study(args: argparse.Namespace, seeds: list[int]) -> None:
+    mazes = args.mazes or list(NEW_MAZES)
+    jobs = [
+        delayed(new_row)(a, m, s, args.budget or 1_000_000, args.slip)
+        for a in args.agents
+        for m in mazes
+        for s in seeds
+    ]
+    rows = Parallel(n_jobs=args.jobs)(jobs)
+    slip = f"_slip{args.slip:g}" if args.slip else ""
+    write(Path(args.out) / f"merging_new{slip}_seeds{args.seeds}.csv", NEW_FIELDS, rows)
+    print("| maze (squares) | " + " | ".join(f"`{a}`" for a in args.agents) + " |")
+    print("|---" * (len(args.agents) + 1) + "|")
+    for m in mazes:
+        cells = []
+        for a in args.agents:
+            rs = [r for r in rows if r["agent"] == a and r["maze"] == m]
+            st = [r["env_steps"] for r in rs]
+            n = sum(r["reached"] for r in rs)
+            miss = "" if n == len(rs) else f" ({n} of {len(rs)})"
+            cells.append(
+                f"{np.median(st):,.0f} [{min(st):,}-{max(st):,}]{miss}, {np.median([r['cells'] for r in rs]):.0f}"
+            )
+        print(f"| {m} ({rs[0]['squares']}) | " + " | ".join(cells) + " |")
+
+
 def seeds_of(text: str) -> list[int]:
     lo, _, hi = text.partition("-")
     return list(range(int(lo), int(hi or lo) + 1))
@@ -102,7 +192,10 @@ def main() -> None:
     ap.add_argument("--protocol", action="store_true")
     for family in FAMILIES:
         ap.add_argument(f"--{family}", action="store_true")
-    ap.add_argument("--slip", type=float, default=0.0, help="--generated: the slip probability")
+    ap.add_argument("--new", action="store_true")
+    ap.add_argument("--slip", type=float, default=0.0, help="--generated, --new: the slip probability")
+    ap.add_argument("--agents", nargs="+", default=["avq", "tabular-ps", "tiles"], choices=list(NEW_AGENTS))
+    ap.add_argument("--mazes", nargs="+", default=None, choices=list(NEW_MAZES), help="--new: some mazes only")
     ap.add_argument("--sizes", type=float, nargs="+", default=None, help="instead of the family's")
     ap.add_argument("--seeds", default="0-29")
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
@@ -125,6 +218,8 @@ def main() -> None:
                 f"| {v} | {sum(r['meets'] for r in rs)} of {len(rs)} | {np.median(c):.0f} [{min(c)}-{max(c)}] | "
                 f"{min(r['success'] for r in rs):.0%} | {np.median(q):.3f}, {max(q):.2f} |"
             )
+    if args.new:
+        new_study(args, seeds)
     for family, (default_sizes, default_budget) in FAMILIES.items():
         if getattr(args, family):
             steps_study(family, args, seeds, args.sizes or default_sizes, args.budget or default_budget)
