@@ -127,11 +127,19 @@ def steps_row(family: str, variant: str, size: float, seed: int, budget: int, sl
     )
 
 
+def new_agent(name: str) -> tuple[str, dict]:
+    """``--new``'s agent ``name``: a registered agent of NEW_AGENTS, or a variant (``avq-plan`` with its overrides)."""
+    if name in NEW_AGENTS:
+        return name, NEW_AGENTS[name]
+    return "avq-plan", {**UNCAPPED, **VARIANTS[name]}
+
+
 def new_row(agent_name: str, maze: str, seed: int, budget: int, slip: float) -> dict:
     rows = NEW_MAZES[maze]
     limit = 4 * (len(rows) + len(rows[0]))
     make = lambda: gym.make("avq/GridMaze-v0", layout=rows, max_episode_steps=limit, slip=slip)  # noqa: E731
-    agent = avq.make_agent(agent_name, make(), seed=seed, **NEW_AGENTS[agent_name])
+    name, overrides = new_agent(agent_name)
+    agent = avq.make_agent(name, make(), seed=seed, **overrides)
     walks = make()
     if slip:
         walks.reset(seed=10_000 + seed)
@@ -194,7 +202,13 @@ def main() -> None:
         ap.add_argument(f"--{family}", action="store_true")
     ap.add_argument("--new", action="store_true")
     ap.add_argument("--slip", type=float, default=0.0, help="--generated, --new: the slip probability")
-    ap.add_argument("--agents", nargs="+", default=["avq", "tabular-ps", "tiles"], choices=list(NEW_AGENTS))
+    ap.add_argument(
+        "--agents",
+        nargs="+",
+        default=["avq", "tabular-ps", "tiles"],
+        choices=[*NEW_AGENTS, *VARIANTS],
+        help="--new: agents by name, or variants (default: avq tabular-ps tiles)",
+    )
     ap.add_argument("--mazes", nargs="+", default=None, choices=list(NEW_MAZES), help="--new: some mazes only")
     ap.add_argument("--sizes", type=float, nargs="+", default=None, help="instead of the family's")
     ap.add_argument("--seeds", default="0-29")
