@@ -164,9 +164,7 @@ def new_study(args: argparse.Namespace, seeds: list[int]) -> None:
         for m in mazes
         for s in seeds
     ]
-    rows = Parallel(n_jobs=args.jobs)(jobs)
-    slip = f"_slip{args.slip:g}" if args.slip else ""
-    write(Path(args.out) / f"merging_new{slip}_seeds{args.seeds}.csv", NEW_FIELDS, rows)
+    rows = run_and_write(jobs, args, "new", NEW_FIELDS)
     print("| maze (squares) | " + " | ".join(f"`{a}`" for a in args.agents) + " |")
     print("|---" * (len(args.agents) + 1) + "|")
     for m in mazes:
@@ -193,6 +191,14 @@ def write(path: Path, fields: tuple, rows: list[dict]) -> None:
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
         w.writerows(rows)
+
+
+def run_and_write(jobs: list, args: argparse.Namespace, study: str, fields: tuple) -> list[dict]:
+    """Run ``jobs`` on ``args.jobs`` processes and write their rows to ``merging_STUDY[_slipP]_seedsS.csv``."""
+    rows = Parallel(n_jobs=args.jobs)(jobs)
+    slip = f"_slip{args.slip:g}" if args.slip else ""
+    write(Path(args.out) / f"merging_{study}{slip}_seeds{args.seeds}.csv", fields, rows)
+    return rows
 
 
 def main() -> None:
@@ -246,9 +252,7 @@ def steps_study(family: str, args: argparse.Namespace, seeds: list[int], sizes, 
         for size in sizes
         for s in seeds
     ]
-    rows = Parallel(n_jobs=args.jobs)(jobs)
-    slip = f"_slip{args.slip:g}" if args.slip else ""
-    write(Path(args.out) / f"merging_{family}{slip}_seeds{args.seeds}.csv", STEPS_FIELDS, rows)
+    rows = run_and_write(jobs, args, family, STEPS_FIELDS)
     print(
         f"| variant | {'k' if family == 'resolution' else 'move' if family == 'robot' else 'side'} | reached 95% | "
         "env steps median [range] | cells median [range] |"

@@ -172,9 +172,6 @@ def planner_backups_per_second(name: str, reps: int = 200) -> float:
     return best
 
 
-#: avq-plan with merging under its model, the grid maze's variant (benchmarks/merging.py's merge+cycle+radius).
-
-
 def planning_steps_per_second(name: str, episodes: int) -> tuple[float, float, float, int]:
     """``(steps/s while learning from scratch, steps/s once learned, backups/s while learning, cells)`` on the
     fused path, the best of 3 runs (the first episodes of the first run compile nothing: warmed up before)."""

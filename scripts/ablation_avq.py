@@ -31,38 +31,41 @@ from avq.reproduce import train_maze_run
 #: The Sarsa(λ) agent that ``avq`` was on the grid maze until the planner with merging replaced it: the maze
 #: rules (``avq-maze``) with the cycle split and a decaying exploration rate. The rows switch one option from it.
 SARSA_AVQ = {"cycle_split": True, "epsilon": 0.2, "epsilon_decay": 0.995, "epsilon_min": 0.01}
+
+
+def sarsa_avq(**changes) -> tuple[str, dict]:
+    """A row of SARSA_AVQ with ``changes``."""
+    return "avq-maze", {**SARSA_AVQ, **changes}
+
+
 #: row label -> (registered agent, overrides); "avq" is SARSA_AVQ.
 ROWS: dict[str, tuple[str, dict]] = {
-    "avq": ("avq-maze", SARSA_AVQ),
-    "no cycle split": ("avq-maze", {**SARSA_AVQ, "cycle_split": False}),
-    "no collision split": ("avq-maze", {**SARSA_AVQ, "collision_split": False}),
-    "neither split": ("avq-maze", {**SARSA_AVQ, "cycle_split": False, "collision_split": False}),
-    "merge pairs: mutual (the paper)": ("avq-maze", {**SARSA_AVQ, "merge_pairs": "mutual"}),
-    "merge guard: same action": ("avq-maze", {**SARSA_AVQ, "merge_same_action": True}),
-    "merge guard: 2 episodes": ("avq-maze", {**SARSA_AVQ, "merge_age": 2}),
-    "no merging": ("avq-maze", {**SARSA_AVQ, "merge_every": 0}),
-    "no cell cap": ("avq-maze", {**SARSA_AVQ, "max_cells": 10_000}),
-    "make room at the cap": ("avq-maze", {**SARSA_AVQ, "make_room": True}),
-    "constant epsilon 0.05 (no schedule)": (
-        "avq-maze",
-        {**SARSA_AVQ, "epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0},
+    "avq": sarsa_avq(),
+    "no cycle split": sarsa_avq(cycle_split=False),
+    "no collision split": sarsa_avq(collision_split=False),
+    "neither split": sarsa_avq(cycle_split=False, collision_split=False),
+    "merge pairs: mutual (the paper)": sarsa_avq(merge_pairs="mutual"),
+    "merge guard: same action": sarsa_avq(merge_same_action=True),
+    "merge guard: 2 episodes": sarsa_avq(merge_age=2),
+    "no merging": sarsa_avq(merge_every=0),
+    "no cell cap": sarsa_avq(max_cells=10_000),
+    "make room at the cap": sarsa_avq(make_room=True),
+    "constant epsilon 0.05 (no schedule)": sarsa_avq(epsilon=0.05, epsilon_decay=1.0, epsilon_min=0.0),
+    "constant epsilon 0.05 and no cycle split (avq-maze)": sarsa_avq(
+        epsilon=0.05, epsilon_decay=1.0, epsilon_min=0.0, cycle_split=False
     ),
-    "constant epsilon 0.05 and no cycle split (avq-maze)": (
-        "avq-maze",
-        {**SARSA_AVQ, "epsilon": 0.05, "epsilon_decay": 1.0, "epsilon_min": 0.0, "cycle_split": False},
-    ),
-    "alpha 0.5 decaying by 0.998 to 0.05": ("avq-maze", {**SARSA_AVQ, "alpha_decay": 0.998, "alpha_min": 0.05}),
-    "vectors adapt: rate 0.01": ("avq-maze", {**SARSA_AVQ, "adapt_rate": 0.01}),
-    "vectors adapt: rate 0.05": ("avq-maze", {**SARSA_AVQ, "adapt_rate": 0.05}),
-    "pruning: after 10 episodes": ("avq-maze", {**SARSA_AVQ, "prune_after": 10}),
-    "pruning: after 50 episodes": ("avq-maze", {**SARSA_AVQ, "prune_after": 50}),
-    "count-based bonus 0.5": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 0.5}),
-    "count-based bonus 1": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 1.0}),
-    "count-based bonus 5": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 5.0}),
-    "count-based bonus 5 with q_init 0": ("avq-maze", {**SARSA_AVQ, "explore_bonus": 5.0, "q_init": 0.0}),
-    "no optimism: q_init 0": ("avq-maze", {**SARSA_AVQ, "q_init": 0.0}),
-    "more optimism: q_init 20": ("avq-maze", {**SARSA_AVQ, "q_init": 20.0}),
-    "optimism only: epsilon 0": ("avq-maze", {**SARSA_AVQ, "epsilon": 0.0, "epsilon_decay": 1.0, "epsilon_min": 0.0}),
+    "alpha 0.5 decaying by 0.998 to 0.05": sarsa_avq(alpha_decay=0.998, alpha_min=0.05),
+    "vectors adapt: rate 0.01": sarsa_avq(adapt_rate=0.01),
+    "vectors adapt: rate 0.05": sarsa_avq(adapt_rate=0.05),
+    "pruning: after 10 episodes": sarsa_avq(prune_after=10),
+    "pruning: after 50 episodes": sarsa_avq(prune_after=50),
+    "count-based bonus 0.5": sarsa_avq(explore_bonus=0.5),
+    "count-based bonus 1": sarsa_avq(explore_bonus=1.0),
+    "count-based bonus 5": sarsa_avq(explore_bonus=5.0),
+    "count-based bonus 5 with q_init 0": sarsa_avq(explore_bonus=5.0, q_init=0.0),
+    "no optimism: q_init 0": sarsa_avq(q_init=0.0),
+    "more optimism: q_init 20": sarsa_avq(q_init=20.0),
+    "optimism only: epsilon 0": sarsa_avq(epsilon=0.0, epsilon_decay=1.0, epsilon_min=0.0),
     "avq-paper": ("avq-paper", {}),
     "tabular": ("tabular", {}),
 }
