@@ -224,6 +224,41 @@ def test_cells_with_an_untried_decision_do_not_merge():
     assert merge.merge_pass(agent._ag, agent._model.a) == 0
 
 
+def test_the_merge_pass_finds_the_cells_neighbours_again_only_when_the_codebook_changed():
+    agent = plan_agent(rho=0.5, merge_neighbours=2)  # (A and B differ by 1: no merge)
+    three_cells(agent)
+    ag, m = agent._ag, agent._model.a
+    assert ag.near[0, 0] == -1
+    assert merge.merge_pass(ag, m) == 0
+    # A (1, 1): B at 2, C at 3; B (3, 1): A at 2, C at sqrt(13); C (1, 4): A at 3, B at sqrt(13).
+    assert ag.near[0, 0] == ag.S[GEOM] and ag.near[1:4].tolist() == [[1, 2], [0, 2], [0, 1]]
+    # A vector moved without the codebook's count of changes: the table is kept as it was found.
+    ag.V[2] = (3.0, 2.0)
+    assert merge.merge_pass(ag, m) == 0 and ag.near[1:4].tolist() == [[1, 2], [0, 2], [0, 1]]
+    # Counted as a change: found again (C now at 1 from B, sqrt(5) from A).
+    ag.S[GEOM] += 1
+    assert merge.merge_pass(ag, m) == 0
+    assert ag.near[0, 0] == ag.S[GEOM] and ag.near[1:4].tolist() == [[1, 2], [2, 0], [1, 0]]
+
+
+def test_the_merge_pass_neighbour_table_is_that_of_the_codebook_throughout_training(tmp_path):
+    agent = avq.make_agent("avq", gym.make("avq/GridMaze-v0"), seed=2)
+    checked = 0
+    for _ in range(40):
+        agent.learn(total_episodes=5)
+        ag, size = agent._ag, agent.n_cells
+        if ag.near[0, 0] == ag.S[GEOM]:
+            checked += 1
+            k = ag.near.shape[1]
+            for i in range(size):
+                out = np.zeros(k, dtype=np.int64)
+                found = merge.nearest_cells(ag.V, size, i, k, ag.inv_scale, out)
+                assert ag.near[1 + i, :found].tolist() == out[:found].tolist()
+    assert checked > 10 and agent.episode_history()["merges"].sum() > 0
+    agent.save(tmp_path / "a.zip")
+    assert avq.load(tmp_path / "a.zip")._ag.near[0, 0] == -1  # (found again for the loaded codebook)
+
+
 def test_after_a_merge_a_remembered_observation_is_placed_among_its_cell_and_the_merged_cells():
     # Vectors 0 (0, 0), 1 (2, 0), 2 (10, 0), 3 (5, 4), 4 (20, 0); the pairs (0, 1) and (2, 4) merge: midpoints (1, 0)
     # in slot 0 and (15, 0) in slot 1, and (5, 4) moves down to slot 2.

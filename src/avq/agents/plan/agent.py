@@ -44,6 +44,11 @@ __all__ = ["PlanningAVQ"]
 _GREW = {"S": 16, "mem_i": 3}
 
 
+def _no_neighbours(cap: int, k: int) -> np.ndarray:
+    """The merge pass's neighbour table for ``cap`` cells, not yet found (:class:`PlanArrays`' ``near``)."""
+    return np.full((cap + 1, k), -1, dtype=np.int64)
+
+
 class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     """AVQ that learns a model of its cells and plans over it by prioritized sweeping.
 
@@ -224,6 +229,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             mem_i=np.zeros((self.memory, 4), dtype=np.int64),
             mem_f=np.zeros((self.memory, 2)),
             e_xs=np.zeros((0, n)),
+            near=_no_neighbours(min(self.max_cells, 256) + core.APPENDS_PER_STEP, self.merge_neighbours),
         )
         self._model = _model.Model(
             self.n_actions, 0.0 if isinstance(self.v_opt, str) else self.v_opt, self.v_min, self.known_after, self.tol
@@ -245,7 +251,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         if size + core.APPENDS_PER_STEP > cap:
             new = np.zeros((max(2 * cap, size + core.APPENDS_PER_STEP), ag.V.shape[1]))
             new[:cap] = ag.V
-            ag = self._ag = ag._replace(V=new)
+            ag = self._ag = ag._replace(V=new, near=_no_neighbours(len(new), self.merge_neighbours))
         self._model.reserve(states=core.APPENDS_PER_STEP, edges=core.APPENDS_PER_STEP * (int(ag.S[MEM_N]) + 1))
         edges = self._model.a.e_to.shape[0]
         if ag.e_xs.shape[0] < edges:
@@ -409,6 +415,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self._model.load_state_dict(arrays)
         self._make_room()  # (room for the loaded cells and edges)
         self._ag.V[: len(codebook)] = codebook
+        self._ag.near[0, 0] = -1  # (the merge pass finds the loaded cells' neighbours again)
         e_xs, edges = arrays["e_xs"], int(self._model.a.C[_model.N_EDGES])
         if e_xs.shape != (edges, n):
             raise ValueError(f"array e_xs has shape {e_xs.shape}; expected ({edges}, {n})")

@@ -182,28 +182,49 @@ def _may_merge(ag: PlanArrays, m: ModelArrays, i: int, j: int) -> bool:
     return True
 
 
+@njit(cache=True, inline="always")
+def _partner(ag: PlanArrays, m: ModelArrays, i: int, found: int) -> tuple[int, float]:
+    """Cell ``i``'s partner among its ``found`` nearest cells (``ag.near[1 + i]``) and their profiles' mean
+    square difference, or ``(-1, inf)``: both settled, the same greedy action (``merge_same_action``), the
+    closest profile under ``rho`` (the first of the nearest on ties)."""
+    Q, near = m.Q, ag.near
+    rho, same_action = ag.P[PlanParam.RHO], ag.IP[PlanIntParam.MERGE_SAME_ACTION]
+    best, gap = -1, np.inf
+    if settled(m, i):
+        for p in range(found):
+            j = near[1 + i, p]
+            if settled(m, j) and (not same_action or same_greedy_action(Q[i], Q[j])):
+                g = mean_square_difference(Q[i], Q[j])
+                if g < rho and g < gap:
+                    best, gap = j, g
+    return best, gap
+
+
 @njit(cache=True)
 def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
     """Merge the cells that the rules above allow, rebuild the model and return how many merges were made
-    (0, changing nothing, when merging is off or the memory no longer holds every transition)."""
-    P, IP, S, V, Q, Vm = ag.P, ag.IP, ag.S, ag.V, m.Q, m.V
+    (0, changing nothing, when merging is off or the memory no longer holds every transition). Each cell's
+    nearest cells are found again only when the codebook changed (``ag.near``); a pass that finds no
+    candidate allocates nothing."""
+    P, IP, S, V, Q, Vm, near = ag.P, ag.IP, ag.S, ag.V, m.Q, m.V, ag.near
     size = S[SIZE]
-    rho, k, same_action = P[PlanParam.RHO], IP[PlanIntParam.MERGE_NEIGHBOURS], IP[PlanIntParam.MERGE_SAME_ACTION]
-    if rho < 0.0 or size < 2 or S[MEM_N] >= IP[PlanIntParam.MEMORY]:
+    if P[PlanParam.RHO] < 0.0 or size < 2 or S[MEM_N] >= IP[PlanIntParam.MEMORY]:
         return 0
+    k = IP[PlanIntParam.MERGE_NEIGHBOURS]
+    if near[0, 0] != S[GEOM]:
+        for i in range(size):
+            nearest_cells(V, size, i, k, ag.inv_scale, near[1 + i])
+        near[0, 0] = S[GEOM]
+    found = min(k, size - 1)
+    first = 0
+    while first < size and _partner(ag, m, first, found)[0] < 0:
+        first += 1
+    if first == size:
+        return 0  # (most passes)
     partner = np.full(size, -1, dtype=np.int64)
     gap = np.full(size, np.inf)
-    near = np.empty(k, dtype=np.int64)
-    for i in range(size):
-        if not settled(m, i):
-            continue
-        for p in range(nearest_cells(V, size, i, k, ag.inv_scale, near)):
-            j = near[p]
-            if settled(m, j) and (not same_action or same_greedy_action(Q[i], Q[j])):
-                g = mean_square_difference(Q[i], Q[j])
-                if g < rho and g < gap[i]:
-                    gap[i] = g
-                    partner[i] = j
+    for i in range(first, size):
+        partner[i], gap[i] = _partner(ag, m, i, found)
     for i in range(size):  # (a refused partner is no partner: the refusals depend on the pair alone)
         j = partner[i]
         if j >= 0 and not _may_merge(ag, m, i, j):

@@ -94,6 +94,9 @@ class PlanArrays(NamedTuple):
     mem_f: np.ndarray
     #: ``(edges, n)`` the sum of the starts of each edge's transitions (the edges of the model).
     e_xs: np.ndarray
+    #: ``(cap + 1, merge_neighbours)`` the merge pass's neighbours: ``near[1 + i]`` lists cell ``i``'s nearest
+    #: cells, nearest first, found for the codebook of ``S[GEOM] == near[0, 0]`` (-1: not yet). Derived, not saved.
+    near: np.ndarray
 
 
 #: ``borrowed_plan(ag)``: ``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed_record`), for a
