@@ -9,7 +9,7 @@ import avq
 from avq import quantizer
 from avq.agents.plan import explore, kernels, memory, merge, model as _model
 from avq.agents.plan.model import CONT, Model
-from avq.agents.plan.state import GEOM, MEM_N, MEM_POS, SIZE
+from avq.agents.plan.state import GEOM, MEM_N, MEM_POS, SIZE, PlanIntParam
 from avq.rules import merged_decision_leaves
 
 MAZE = {k: v for k, v in avq.agents.registry.DEFAULTS["avq-plan"]["avq/GridMaze-v0"].items() if k != "scale"}
@@ -199,7 +199,7 @@ def test_with_merge_same_action_cells_whose_greedy_actions_differ_do_not_merge()
         assert merge.merge_pass(agent._ag, m) == merges
 
 
-def test_no_merge_above_rho_or_beyond_the_nearest_cells():
+def test_no_merge_above_rho_beyond_the_nearest_cells_or_once_the_memory_is_full():
     agent = plan_agent(rho=0.5)  # (A and B differ by 1)
     three_cells(agent)
     assert merge.merge_pass(agent._ag, agent._model.a) == 0
@@ -207,34 +207,10 @@ def test_no_merge_above_rho_or_beyond_the_nearest_cells():
     add_cells(agent, (8.0, 8.0))  # (a cell never visited: A's nearest is B and B's is A, so they still merge)
     three_cells(agent)
     assert merge.merge_pass(agent._ag, agent._model.a) == 1
-
-
-def test_once_the_memory_is_full_the_transitions_it_forgot_follow_the_merged_cells():
-    agent = plan_agent(memory=12)
-    add_cells(agent, A, B, C)
-    put(agent, A, 1, B, -2.0, crossing=True)  # (the first remembered: overwritten below)
-    for x in (A, B, C):
-        for a in (0, 2, 3):
-            put(agent, x, a, x, -10.0, terminal=True)
-    put(agent, B, 1, B, -4.0, terminal=True)
-    put(agent, C, 1, C, -30.0, terminal=True)
-    put(agent, A, 1, B, -2.0, crossing=True)  # (the memory holds 12: the first crossing is forgotten)
-    converge(agent)
-    ag, m = agent._ag, agent._model.a
-    assert int(ag.S[MEM_N]) == 12 and m.cnt[0, 1] == 2 and m.Q[0].tolist() == [-10.0, -6.0, -10.0, -10.0]
-    assert merge.merge_pass(ag, m) == 1 and agent.n_cells == 2
-    # East in the merged cell: both crossings go on, the remembered and the forgotten; B's East ends at -4:
-    # Q = (-2 - 2 - 4) / (3 - 2) = -8.
-    assert m.cnt[0].tolist() == [2, 3, 2, 2] and m.cint[0].tolist() == [0, 2, 0, 0]
-    assert m.cnt[1].tolist() == [1, 1, 1, 1]
-    converge(agent)
-    assert m.Q[0].tolist() == [-10.0, -8.0, -10.0, -10.0]
-    # The sums of the edges' starts hold the forgotten one's start (A) beside the memory's.
-    edges = int(m.C[_model.N_EDGES])
-    assert ag.e_xs[:edges].sum(axis=0).tolist() == list(ag.mem_x[:12, :2].sum(axis=0) + A)
-    # A merge pass finds the forgotten transitions again and leaves them where they are.
-    kept, sums = merge.forgotten(ag, m, agent.n_cells)
-    assert kept.tolist() == [[0, 1, _model.CONT, 1]] and sums.tolist() == [[-2.0, 1.0, *A]]
+    agent = plan_agent(memory=12)  # (three_cells remembers 12 transitions: the memory is full)
+    three_cells(agent)
+    assert int(agent._ag.S[MEM_N]) == agent._ag.IP[PlanIntParam.MEMORY]
+    assert merge.merge_pass(agent._ag, agent._model.a) == 0
 
 
 def test_cells_with_an_untried_decision_do_not_merge():
@@ -336,28 +312,6 @@ def test_merging_agent_is_the_same_on_both_paths_and_merges():
     assert ha["merges"].sum() > 0
     plain = avq.make_agent("avq-plan", gym.make("avq/GridMaze-v0"), seed=1).learn(total_episodes=150)
     assert a.n_cells < plain.n_cells
-
-
-def test_with_a_small_memory_merging_goes_on_once_it_is_full_and_the_model_keeps_every_transition():
-    a, b = trained(True, memory=300, episodes=200), trained(False, memory=300, episodes=200)
-    assert np.array_equal(a.codebook_, b.codebook_) and np.array_equal(a.q_, b.q_)
-    ha = a.episode_history()
-    full_from = int(np.searchsorted(np.cumsum(ha["decisions"]), 300)) + 1
-    assert ha["merges"][full_from:].sum() > 0
-    m, p = a._model.a, a.n_cells
-    edges = [[[] for _ in range(4)] for _ in range(p)]
-    for s in range(p):
-        for act in range(4):
-            e = m.head[s, act]
-            while e >= 0:
-                edges[s][act].append(int(m.e_n[e]))
-                e = m.e_next[e]
-    # Each pair's count is what its edges hold, none below zero, and the model holds more transitions than the
-    # memory: what it forgot is still there.
-    assert all(
-        m.cnt[s, act] == sum(edges[s][act]) and min(edges[s][act], default=0) >= 0 for s in range(p) for act in range(4)
-    )
-    assert m.cnt[:p].sum() > 300
 
 
 def test_merging_agent_resumes_exactly(tmp_path):

@@ -110,8 +110,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             two cells whose decisions are all known and whose action-value profiles differ by a mean square
             below ``rho`` merge, the pair chosen among each cell's ``merge_neighbours`` nearest; the model of
             the merged cell is composed from its halves' remembered transitions (a decision that ended at the
-            old border goes on), and the outcome split may cut it again. None: no merging. Once the memory is
-            full, what the model holds of the transitions it overwrote follows the merged cells too.
+            old border goes on), and the outcome split may cut it again. None: no merging. Merging stops once
+            the memory is full (it rebuilds the model from what the memory holds).
         merge_neighbours: How many of a cell's nearest cells may be its partner in a merge, >= 1.
         merge_same_action: Merge only cells whose greedy actions agree (as ``AVQSarsa``'s): a decision that
             crossed from one into the other then goes on as it would have been taken again, so a merge does not

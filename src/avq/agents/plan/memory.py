@@ -4,8 +4,7 @@ The last ``memory`` aggregate transitions are kept with their start and end obse
 (:func:`remember`). When the codebook changes, each remembered transition whose start or end
 observation now lies in another cell is moved in the model (removed from its old pair and added to
 the new one: :func:`relocate`), so that the model describes the current partition by what was seen.
-Beyond ``memory``, the oldest transition is overwritten: it stays in the model in the cell it was in (a merge
-takes it along: :func:`avq.agents.plan.merge.forgotten`).
+Beyond ``memory``, the oldest transition is overwritten: it stays in the model where it was.
 
 A transition that ended only because the cell changed (a *crossing*: no collision, no end of the episode) and
 whose two ends come to lie in one cell (cells merged) is recorded as going on (:data:`~avq.agents.plan.model.CONT`):
@@ -133,8 +132,8 @@ def start_after_growth(ag: PlanArrays, t: int, i: int, grown_from: int) -> int:
 @njit(cache=True, inline="always")
 def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float, crossing: bool) -> None:
     """Keep the transition ``(i, a) -> j`` from ``ag.xs`` to ``x`` (``crossing``: it ended only because the cell
-    changed) in the memory. When it is full, the oldest is overwritten: it stays in the model, in the cells it
-    was in, and follows only merges (:func:`avq.agents.plan.merge.forgotten`), not splits."""
+    changed) in the memory. When it is full, the oldest
+    is overwritten: it stays in the model, in the cells it was in, but no longer follows their changes."""
     S, IP, xs, mem_x, mem_i, mem_f = ag.S, ag.IP, ag.xs, ag.mem_x, ag.mem_i, ag.mem_f
     t = S[MEM_POS]
     if S[MEM_N] < IP[PlanIntParam.MEMORY]:

@@ -1,7 +1,7 @@
 """``avq-plan``'s merging: the paper's second mechanism (docs: explanation/paper.md, Merging) under a learned
 model, with the merged cell's model *composed* from its halves' transitions rather than averaged.
 
-At the end of an episode (``rho`` set):
+At the end of an episode (``rho`` set, and the memory still holding every transition seen):
 
 1. each cell whose every decision is known looks, among its ``merge_neighbours`` nearest cells whose every
    decision is known too (and, with ``merge_same_action``, whose greedy action is the same), for the one whose
@@ -16,9 +16,7 @@ At the end of an episode (``rho`` set):
    between the cells its start and end observations now lie in, and a transition that ended only because
    the cell changed, whose two ends now lie in one cell, as a decision that goes on
    (:data:`avq.agents.plan.model.CONT`). So a merged cell's decision is valued as it would be run (it goes on
-   across the old border) without being explored again, and a later split cuts it by what was seen. Once the
-   memory is full, what the model holds of the transitions it overwrote is kept and follows the merged cells
-   (:func:`forgotten`; a split leaves it in the cell it was in).
+   across the old border) without being explored again, and a later split cuts it by what was seen.
 
 The planned values are kept as a start: every cell is queued and the values converge over the next steps.
 """
@@ -30,7 +28,7 @@ from numba import njit
 
 from avq.agents.plan import model as _model
 from avq.agents.plan.memory import cell_after_merge, record_with_start, successor
-from avq.agents.plan.model import CONT, ModelArrays, settled
+from avq.agents.plan.model import ModelArrays, settled
 from avq.agents.plan.state import GEOM, MEM_N, SIZE, SLOPE_N, SLOPE_SUM, PlanArrays, PlanIntParam, PlanParam
 from avq.quantizer import compact_rows, disjoint_pairs, merge_kernel
 from avq.rules import mean_square_difference, merged_decision_leaves, outcome_disagrees, same_greedy_action
@@ -39,7 +37,6 @@ __all__ = [
     "MODEL_MERGE_PARAMS",
     "merge_pass",
     "rebuild",
-    "forgotten",
     "nearest_cells",
     "exits_after_merge",
     "outcomes_agree",
@@ -142,59 +139,14 @@ def exits_after_merge(m: ModelArrays, i: int, j: int, a: int) -> int:
 
 
 @njit(cache=True)
-def forgotten(ag: PlanArrays, m: ModelArrays, size: int):
-    """What the model holds of transitions the memory no longer remembers (it was full and overwrote them), taken
-    out of the model with the remembered ones: ``(ints, floats)``, one row per edge of cells ``< size`` left, ``(cell,
-    action, successor, transitions)`` and ``(return, discount, start...)`` sums. Nothing (and the model
-    unchanged) while the memory holds every transition seen."""
-    n = ag.e_xs.shape[1]
-    if ag.S[MEM_N] < ag.IP[PlanIntParam.MEMORY]:
-        return np.empty((0, 4), dtype=np.int64), np.empty((0, 2 + n))
-    mem_x, mem_i, mem_f, e_xs = ag.mem_x, ag.mem_i, ag.mem_f, ag.e_xs
-    for t in range(ag.S[MEM_N]):
-        cs = mem_i[t, 1]
-        target = successor(cs, mem_i[t, 2], mem_i[t, 3])
-        record_with_start(m, e_xs, mem_x, t, cs, mem_i[t, 0], mem_f[t, 0], mem_f[t, 1], target, -1)
-    rows = 0
-    for s in range(size):
-        for a in range(m.head.shape[1]):
-            e = m.head[s, a]
-            while e >= 0:
-                rows += m.e_n[e] > 0
-                e = m.e_next[e]
-    ints, floats = np.empty((rows, 4), dtype=np.int64), np.empty((rows, 2 + n))
-    q = 0
-    for s in range(size):
-        for a in range(m.head.shape[1]):
-            e = m.head[s, a]
-            while e >= 0:
-                if m.e_n[e] > 0:
-                    ints[q, 0], ints[q, 1], ints[q, 2], ints[q, 3] = s, a, m.e_to[e], m.e_n[e]
-                    floats[q, 0], floats[q, 1] = m.e_r[e], m.e_disc[e]
-                    floats[q, 2:] = e_xs[e]
-                    q += 1
-                e = m.e_next[e]
-    return ints, floats
-
-
-@njit(cache=True)
 def rebuild(ag: PlanArrays, m: ModelArrays, pairs, mapping) -> None:
-    """The model in the cells after the merges ``pairs`` (old indices) that :func:`avq.quantizer.merge_kernel`
-    mapped by ``mapping``: :func:`avq.agents.plan.model.clear`, then what it held of forgotten transitions
-    (:func:`forgotten`) added again between the cells they map to (one from a half into the other as going
-    on: :data:`~avq.agents.plan.model.CONT`), then every remembered transition recorded again between the cells
-    its start and end observations now lie in (:func:`avq.agents.plan.memory.cell_after_merge`: the memory's
-    cells are those of the codebook before)."""
+    """The model from the memory alone, in the cells after the merges ``pairs`` (old indices) that
+    :func:`avq.quantizer.merge_kernel` mapped by ``mapping``: :func:`avq.agents.plan.model.clear`, then every
+    remembered transition recorded again between the cells its start and end observations now lie in
+    (:func:`avq.agents.plan.memory.cell_after_merge`: the memory's cells are those of the codebook before)."""
     V, inv_scale, mem_x, mem_i, mem_f, e_xs = ag.V, ag.inv_scale, ag.mem_x, ag.mem_i, ag.mem_f, ag.e_xs
-    kept, sums = forgotten(ag, m, mapping.shape[0])
     e_xs[: m.C[_model.N_EDGES]] = 0.0
     _model.clear(m)
-    for q in range(kept.shape[0]):
-        s, t = mapping[kept[q, 0]], kept[q, 2]
-        if t >= 0:
-            t = CONT if mapping[t] == s and t != kept[q, 0] else mapping[t]
-        e = _model.add(m, s, kept[q, 1], sums[q, 0], sums[q, 1], t, kept[q, 3])
-        e_xs[e] += sums[q, 2:]
     n, size = V.shape[1], ag.S[SIZE]
     half = np.zeros(mapping.shape[0], dtype=np.bool_)
     merged = np.empty(pairs.shape[0], dtype=np.int64)
@@ -251,12 +203,12 @@ def _partner(ag: PlanArrays, m: ModelArrays, i: int, found: int) -> tuple[int, f
 @njit(cache=True)
 def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
     """Merge the cells that the rules above allow, rebuild the model and return how many merges were made
-    (0, changing nothing, when merging is off). Each cell's
+    (0, changing nothing, when merging is off or the memory no longer holds every transition). Each cell's
     nearest cells are found again only when the codebook changed (``ag.near``); a pass that finds no
     candidate allocates nothing."""
     P, IP, S, V, Q, Vm, near = ag.P, ag.IP, ag.S, ag.V, m.Q, m.V, ag.near
     size = S[SIZE]
-    if P[PlanParam.RHO] < 0.0 or size < 2:
+    if P[PlanParam.RHO] < 0.0 or size < 2 or S[MEM_N] >= IP[PlanIntParam.MEMORY]:
         return 0
     k = IP[PlanIntParam.MERGE_NEIGHBOURS]
     if near[0, 0] != S[GEOM]:

@@ -53,7 +53,7 @@ from avq._numba import Compiled, borrowed
 from avq.agents._params import ParamIndex, pack_params
 from avq.agents.plan.queue import HEAP_N, pop, push
 
-__all__ = ["CONT", "Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "add", "borrowed_model", "clear", "known"]
+__all__ = ["CONT", "Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "clear", "known"]
 
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
@@ -300,8 +300,19 @@ def clear(m: ModelArrays) -> None:
 @njit(cache=True, inline="always")
 def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
-    cnt, cint, rsum, head, Q, V, C, MP = m.cnt, m.cint, m.rsum, m.head, m.Q, m.V, m.C, m.MP  # (once: see ModelArrays)
-    e_to, e_next, e_disc = m.e_to, m.e_next, m.e_disc
+    cnt, cint, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (
+        m.cnt,
+        m.cint,
+        m.rsum,
+        m.head,
+        m.Q,
+        m.V,
+        m.e_to,
+        m.e_next,
+        m.e_disc,
+        m.C,
+        m.MP,
+    )  # (taken once: see ModelArrays)
     best = -np.inf
     for a in range(Q.shape[1]):
         n = cnt[s, a]
@@ -380,19 +391,12 @@ def record(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, sign:
     """Add (``sign`` 1) or remove (-1) one transition ``(s, a) -> s2`` (-1: terminal, :data:`CONT`: goes on) of
     return ``r`` and discount ``disc``; return its edge. A successor seen for the first time takes an edge (and a
     predecessor entry): the caller makes room for one."""
-    return add(m, s, a, sign * r, sign * disc, s2, sign)
-
-
-@njit(cache=True, inline="always")
-def add(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, count: int) -> int:
-    """Add ``count`` transitions ``(s, a) -> s2`` (negative: remove them) whose returns sum to ``r`` and
-    discounts to ``disc``; return their edge (:func:`record`, for one transition)."""
     cnt, cint, rsum, head, C = m.cnt, m.cint, m.rsum, m.head, m.C
     e_to, e_next, e_n, e_disc, e_r = m.e_to, m.e_next, m.e_n, m.e_disc, m.e_r
-    cnt[s, a] += count
+    cnt[s, a] += sign
     if s2 == CONT:
-        cint[s, a] += count
-    rsum[s, a] += r
+        cint[s, a] += sign
+    rsum[s, a] += sign * r
     if cnt[s, a] == 0:
         rsum[s, a] = 0.0  # (no rounding left over from removed returns)
     e = head[s, a]
@@ -409,9 +413,9 @@ def add(m: ModelArrays, s: int, a: int, r: float, disc: float, s2: int, count: i
         e_r[e] = 0.0
         if s2 >= 0:
             _add_predecessor(m.p_head, m.p_sa, m.p_edge, m.p_next, C, s * cnt.shape[1] + a, e, s2)
-    e_n[e] += count
-    e_disc[e] += disc
-    e_r[e] += r
+    e_n[e] += sign
+    e_disc[e] += sign * disc
+    e_r[e] += sign * r
     if e_n[e] == 0:
         e_disc[e] = 0.0
         e_r[e] = 0.0
