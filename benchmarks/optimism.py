@@ -1,0 +1,126 @@
+"""How much optimism the general ``avq`` needs: ``v_opt`` against the final return, on a task with shaped rewards
+(LunarLander-v3) and on one whose rewards only count survival (CartPole-v1).
+
+``avq``'s general entry (``PlanningAVQ``'s signature defaults, as ``make_agent`` gives a task of the user's own;
+CartPole-v1's own entry is not used) with ``v_opt`` "auto" (R-max's bound: the horizon times the largest reward
+seen) and with fixed values, beside ``tiles`` and a random policy. Per run: the final return (mean of the last
+100 episodes), the cells and ``v_opt_`` at the end; per configuration the median and range over the seeds.
+Writes ``OUT/optimism.csv`` (``--out``, default ``docs/data``); LunarLander-v3 needs ``pip install
+"gymnasium[box2d]"``.
+
+    python benchmarks/optimism.py                                  # seeds 0-2: 5 min on 2 cores
+    python benchmarks/optimism.py --seeds 10-19 --tasks LunarLander-v3 --v-opt auto 0
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from joblib import Parallel, delayed
+
+sys.path.insert(0, str(Path(__file__).parent))
+from dimensions import CARTPOLE_BOUNDS  # noqa: E402
+
+import avq  # noqa: E402
+
+#: Episodes per run and the ``v_opt`` values measured on each task.
+TASKS = {"LunarLander-v3": 1000, "CartPole-v1": 300}
+V_OPTS = ("auto", 200.0, 100.0, 30.0, 0.0, -50.0)
+TAIL = 100
+FIELDS = ("task", "agent", "v_opt", "seed", "episodes", "final_return", "cells", "v_opt_end", "env_steps", "wall_s")
+
+
+def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> dict:
+    """One run: ``avq`` (the general entry) with ``v_opt``, ``tiles`` or ``random``."""
+    env, t = gym.make(task), time.perf_counter()
+    if agent == "random":
+        env.action_space.seed(seed)
+        returns, steps = [], 0
+        for e in range(episodes):
+            env.reset(seed=seed * 100_000 + e)
+            total, done = 0.0, False
+            while not done:
+                _, r, term, trunc, _ = env.step(env.action_space.sample())
+                total, done, steps = total + float(r), term or trunc, steps + 1
+            returns.append(total)
+        cells, v_end = 0, None
+    else:
+        if agent == "avq":
+            model = avq.PlanningAVQ(env, v_opt=v_opt, seed=seed)
+        else:  # (tiles cuts a box: CartPole's velocities are unbounded)
+            model = avq.make_agent(
+                agent, env, seed=seed, **({"obs_bounds": CARTPOLE_BOUNDS} if "CartPole" in task else {})
+            )
+        model.learn(total_episodes=episodes)
+        returns, steps, cells = model.episode_history()["return"], model.num_timesteps, model.n_cells
+        v_end = round(model.v_opt_, 1) if agent == "avq" else None
+    return dict(
+        task=task,
+        agent=agent,
+        v_opt=v_opt if agent == "avq" else "",
+        seed=seed,
+        episodes=episodes,
+        final_return=round(float(np.mean(returns[-TAIL:])), 1),
+        cells=cells,
+        v_opt_end=v_end,
+        env_steps=steps,
+        wall_s=round(time.perf_counter() - t, 1),
+    )
+
+
+def seeds_of(text: str) -> list[int]:
+    lo, _, hi = text.partition("-")
+    return list(range(int(lo), int(hi or lo) + 1))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS))
+    ap.add_argument("--seeds", default="0-2")
+    ap.add_argument("--v-opt", nargs="+", default=[str(v) for v in V_OPTS], help='"auto" or numbers')
+    ap.add_argument("--baselines", nargs="*", default=["tiles", "random"], choices=["tiles", "random"])
+    ap.add_argument("--episodes", type=int, default=None, help="per run, instead of each task's own (a check)")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", default="docs/data")
+    args = ap.parse_args()
+    v_opts = [v if v == "auto" else float(v) for v in args.v_opt]
+    configs = [("avq", v) for v in v_opts] + [(b, "") for b in args.baselines]
+    jobs = [
+        delayed(run)(task, agent, v, seed, args.episodes or TASKS[task])
+        for task in args.tasks
+        for agent, v in configs
+        for seed in seeds_of(args.seeds)
+    ]
+    rows = Parallel(n_jobs=args.jobs)(jobs)
+    out = Path(args.out) / f"optimism_seeds{args.seeds}.csv"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with out.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=FIELDS)
+        w.writeheader()
+        w.writerows(rows)
+    print(f"| task | agent | v_opt | final return (last {TAIL}), median [range] | cells | v_opt at the end |")
+    print("|---|---|---|---|---|---|")
+    for task in args.tasks:
+        for agent, v in configs:
+            rs = [
+                r
+                for r in rows
+                if r["task"] == task and r["agent"] == agent and r["v_opt"] == (v if agent == "avq" else "")
+            ]
+            fin = [r["final_return"] for r in rs]
+            v_end = np.median([r["v_opt_end"] for r in rs]) if agent == "avq" else None
+            print(
+                f"| {task} | {agent} | {v} | {np.median(fin):.1f} [{min(fin):.1f} to {max(fin):.1f}] | "
+                f"{np.median([r['cells'] for r in rs]):,.0f} | {'' if v_end is None else f'{v_end:,.0f}'} |"
+            )
+    print(f"(written {out})")
+
+
+if __name__ == "__main__":
+    main()
