@@ -1,5 +1,7 @@
 """How much optimism the general ``avq`` needs: ``v_opt`` against the final return, on a task with shaped rewards
-(LunarLander-v3) and on one whose rewards only count survival (CartPole-v1).
+(LunarLander-v3), on one whose rewards only count survival (CartPole-v1) and on MountainCar-v0 with
+potential-based shaping (``MountainCar-shaped``: rewards of both signs, the same best policy; a task never
+used to choose the rule, its final return unshaped).
 
 ``avq``'s general entry (``PlanningAVQ``'s signature defaults, as ``make_agent`` gives a task of the user's own;
 CartPole-v1's own entry is not used) with ``v_opt`` "auto" (R-max's bound: the horizon times the largest reward
@@ -10,6 +12,7 @@ Writes ``OUT/optimism.csv`` (``--out``, default ``docs/data``); LunarLander-v3 n
 
     python benchmarks/optimism.py                                  # seeds 0-2: 5 min on 2 cores
     python benchmarks/optimism.py --seeds 10-19 --tasks LunarLander-v3 --v-opt auto 0
+    python benchmarks/optimism.py --seeds 0-14 --tasks MountainCar-shaped --v-opt auto --baselines
 """
 
 from __future__ import annotations
@@ -30,15 +33,43 @@ from dimensions import CARTPOLE_BOUNDS  # noqa: E402
 import avq  # noqa: E402
 
 #: Episodes per run and the ``v_opt`` values measured on each task.
-TASKS = {"LunarLander-v3": 1000, "CartPole-v1": 300}
+TASKS = {"LunarLander-v3": 1000, "CartPole-v1": 300, "MountainCar-shaped": 300}
 V_OPTS = ("auto", 200.0, 100.0, 30.0, 0.0, -50.0)
 TAIL = 100
 FIELDS = ("task", "agent", "v_opt", "seed", "episodes", "final_return", "cells", "v_opt_end", "env_steps", "wall_s")
 
 
+class ShapedMountainCar(gym.Wrapper):
+    """MountainCar-v0 with potential-based shaping: reward + phi(s') - phi(s), phi 100 times the car's height
+    (0 once the episode ends), so rewards take both signs and the best policy is the same. ``returns``: each
+    episode's return unshaped (what the final return reports)."""
+
+    def __init__(self) -> None:
+        super().__init__(gym.make("MountainCar-v0"))
+        self.returns: list[float] = []
+
+    @staticmethod
+    def _phi(obs) -> float:
+        return 100.0 * (0.45 * np.sin(3.0 * obs[0]) + 0.55)
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._phi_s, self._true = self._phi(obs), 0.0
+        return obs, info
+
+    def step(self, action):
+        obs, r, terminated, truncated, info = self.env.step(action)
+        phi = 0.0 if terminated else self._phi(obs)
+        shaped, self._phi_s, self._true = float(r) + phi - self._phi_s, phi, self._true + float(r)
+        if terminated or truncated:
+            self.returns.append(self._true)
+        return obs, shaped, terminated, truncated, info
+
+
 def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> dict:
     """One run: ``avq`` (the general entry) with ``v_opt``, ``tiles`` or ``random``."""
-    env, t = gym.make(task), time.perf_counter()
+    env = ShapedMountainCar() if task == "MountainCar-shaped" else gym.make(task)
+    t = time.perf_counter()
     if agent == "random":
         env.action_space.seed(seed)
         returns, steps = [], 0
@@ -48,7 +79,7 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> 
             while not done:
                 _, r, term, trunc, _ = env.step(env.action_space.sample())
                 total, done, steps = total + float(r), term or trunc, steps + 1
-            returns.append(total)
+            returns.append(env.returns[-1] if isinstance(env, ShapedMountainCar) else total)
         cells, v_end = 0, None
     else:
         if agent == "avq":
@@ -59,6 +90,7 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> 
             )
         model.learn(total_episodes=episodes)
         returns, steps, cells = model.episode_history()["return"], model.num_timesteps, model.n_cells
+        returns = env.returns if isinstance(env, ShapedMountainCar) else returns
         v_end = round(model.v_opt_, 1) if agent == "avq" else None
     return dict(
         task=task,

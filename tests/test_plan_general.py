@@ -8,16 +8,16 @@ import pytest
 
 import avq
 from avq.agents.plan import model as _model, tabular
-from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, horizon
+from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, auto_v_opt, horizon
 
 from conftest import ScriptedEnv
 
 NO = False
 
 
-def walk(xs, last_reward=-1.0):
-    """A 1-D episode through the positions ``xs`` (reward -1 a step), ending at the last."""
-    return [((x,), last_reward if k == len(xs) - 1 else -1.0, k == len(xs) - 1, NO, NO) for k, x in enumerate(xs)]
+def walk(xs, last_reward=-1.0, reward=-1.0):
+    """A 1-D episode through the positions ``xs`` (``reward`` a step), ending at the last."""
+    return [((x,), last_reward if k == len(xs) - 1 else reward, k == len(xs) - 1, NO, NO) for k, x in enumerate(xs)]
 
 
 def line_agent(steps, **kw):
@@ -78,12 +78,9 @@ def test_the_horizon_is_the_time_limit_else_one_over_one_minus_gamma():
     assert horizon(env, 1.0) == UNLIMITED_HORIZON
 
 
-def test_auto_optimism_is_the_horizon_times_the_largest_reward_seen():
-    # Two actions, gamma 0.9 (horizon 10), one episode whose rewards are -1 then 2: untried pairs are worth
-    # 0 during it (no reward > 0 seen yet), then 10 * 2 = 20.
-    steps = walk([0.1, 0.2, 1.0, 1.1], last_reward=2.0)
-    agent = avq.PlanningAVQ(
-        ScriptedEnv([((0.0,), steps)], n_actions=2, dims=1),
+def auto_agent(*episodes):
+    return avq.PlanningAVQ(
+        ScriptedEnv([((0.0,), steps) for steps in episodes], n_actions=2, dims=1),
         scale=1.0,
         d_min=0.5,
         gamma=0.9,
@@ -93,6 +90,12 @@ def test_auto_optimism_is_the_horizon_times_the_largest_reward_seen():
         split_after=3,
         seed=0,
     )
+
+
+def test_auto_optimism_is_the_horizon_times_the_largest_reward_seen():
+    # Two actions, gamma 0.9 (horizon 10), one episode whose rewards are 0 then 2: untried pairs are worth
+    # 0 during it (no reward > 0 seen yet), then 10 * 2 = 20.
+    agent = auto_agent(walk([0.1, 0.2, 1.0, 1.1], last_reward=2.0, reward=0.0))
     assert agent.v_opt_ == 0.0
     agent.learn(total_episodes=1)
     assert agent.v_opt_ == pytest.approx(20.0)
@@ -101,12 +104,30 @@ def test_auto_optimism_is_the_horizon_times_the_largest_reward_seen():
     assert untried.any() and np.allclose(agent.q_[untried], 20.0)
 
 
+def test_auto_optimism_is_zero_once_rewards_of_both_signs_were_seen(tmp_path):
+    # The episode above, then one whose rewards are -1 then 2 (shaped: both signs): from 20 down to 0, and the
+    # untried pairs with it.
+    agent = auto_agent(walk([0.1, 0.2, 1.0, 1.1], last_reward=2.0, reward=0.0), walk([0.1, 1.0], last_reward=2.0))
+    agent.learn(total_episodes=1)
+    assert agent.v_opt_ == pytest.approx(20.0)
+    agent.learn(total_episodes=1)
+    assert agent.v_opt_ == 0.0
+    untried = agent.model_.a.cnt[: agent.n_cells] < 1
+    assert untried.any() and np.all(agent.q_[untried] == 0.0)
+    # Saved and loaded, the agent remembers the reward below 0: the next episode (0s and 2) leaves it at 0.
+    agent.save(tmp_path / "a.zip")
+    loaded = avq.load(tmp_path / "a.zip", env=agent.env)
+    assert loaded.learn(total_episodes=1).v_opt_ == 0.0 and agent.learn(total_episodes=1).v_opt_ == 0.0
+    assert auto_v_opt(10.0, 0.0, 2.0) == 20.0 and auto_v_opt(10.0, -0.5, 2.0) == 0.0
+    assert auto_v_opt(10.0, np.inf, -np.inf) == 0.0 and auto_v_opt(10.0, -3.0, -1.0) == 0.0
+
+
 def test_all_negative_rewards_keep_auto_optimism_at_zero():
     agent = line_agent(LINE, v_opt="auto").learn(total_episodes=2)
     assert agent.v_opt_ == 0.0
 
 
-def test_raising_optimism_reaches_the_predecessors_of_an_untried_state():
+def test_changing_optimism_reaches_the_predecessors_of_an_untried_state():
     # States 0 -> 1 by action 0 (return -1, gamma^k 1); state 1 untried. Q[0, 0] = -1 + V(1) = -1 + v_opt.
     mdl = _model.Model(2, 0.0, -100.0, 1, 1e-9)
     for _ in range(2):
@@ -114,11 +135,12 @@ def test_raising_optimism_reaches_the_predecessors_of_an_untried_state():
     mdl.reserve(edges=1)
     tabular.observe(mdl.a, 0, 0, -1.0, 1.0, 1, 100)
     assert mdl.a.Q[0, 0] == -1.0
-    mdl.raise_optimism(5.0)
+    mdl.set_optimism(5.0)
     mdl.sweep(100)
     assert mdl.a.Q[0, 0] == 4.0 and mdl.a.Q[0, 1] == 5.0 and mdl.a.V[1] == 5.0
-    mdl.raise_optimism(3.0)  # (it only rises)
-    assert mdl.a.MP[_model.ModelParam.V_OPT] == 5.0
+    mdl.set_optimism(3.0)  # (and lowering it reaches them too)
+    mdl.sweep(100)
+    assert mdl.a.Q[0, 0] == 2.0 and mdl.a.Q[0, 1] == 3.0 and mdl.a.V[1] == 3.0
 
 
 def test_bad_v_opt_gets_a_clear_error():

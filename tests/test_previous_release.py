@@ -53,6 +53,11 @@ def test_a_model_of_the_previous_release_loads_and_learns_on_as_it_did(tmp_path,
     meta_then, arrays_then = _contents(second)
     # (a key added after 0.1.0, whose files do not say which defaults made the agent: None, read as unknown)
     assert meta_now.pop("defaults_used") is None and "defaults_used" not in meta_then
+    # (the smallest reward seen, kept since v_opt="auto" is 0 on rewards of both signs: no lower than the largest)
+    state_now, state_then = meta_now["state"], meta_then["state"]
+    if "reward_min" in state_now and "reward_min" not in state_then:
+        low = state_now.pop("reward_min")
+        assert low is None or low <= state_now["reward_max"]
     # Parameters added since, at the values that keep the old behaviour (merging under a model: off).
     for name, value in ADDED_PARAMS.items():
         if name not in meta_then["params"] and name in meta_now["params"]:

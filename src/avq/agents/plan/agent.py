@@ -33,6 +33,7 @@ from avq.agents.plan.state import (
     PlanArrays,
     PlanIntParam,
     PlanParam,
+    auto_v_opt,
     horizon,
 )
 from avq.agents.plan.sweeping import ModelPlanner
@@ -68,8 +69,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             :class:`avq.agents.sweeping.PrioritizedSweeping`; and ``v_opt="auto"``, R-max's bound for a task
             whose rewards are not known beforehand: the episode's horizon (the environment's time limit;
             without one ``1 / (1 - gamma)``, or 1,000 steps with ``gamma = 1``) times the largest reward seen
-            so far, or 0 while no reward > 0 has been seen; brought up to date at the end of every episode
-            (it only rises; the pairs not yet known and their predecessors are backed up again). ``v_opt_`` is the
+            so far, or 0 while no reward > 0 has been seen; and 0 once a reward below 0 has been seen as well
+            (shaped rewards: :func:`avq.agents.plan.state.auto_v_opt`). Brought up to date at the end of every
+            episode (the pairs not yet known and their predecessors are backed up again). ``v_opt_`` is the
             value in force.
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
@@ -234,8 +236,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self._model = _model.Model(
             self.n_actions, 0.0 if isinstance(self.v_opt, str) else self.v_opt, self.v_min, self.known_after, self.tol
         )
-        #: The largest reward seen (v_opt="auto").
-        self._r_max = -np.inf
+        #: The largest and smallest rewards seen (v_opt="auto").
+        self._r_max, self._r_min = -np.inf, np.inf
         self._spread = self._new_spread()
         #: The compiled core.step for the argument types of the last step that went through Numba's
         #: dispatcher (see _advance), or None.
@@ -283,7 +285,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
         count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
-        r_max = self._r_max
+        r_max, r_min = self._r_max, self._r_min
         a = int(S[ACTION])
         n = 0
         while n < max_steps:
@@ -321,6 +323,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
                 count = None
             if r > r_max:
                 r_max = self._r_max = r
+            if r < r_min:
+                r_min = self._r_min = r
             if a == core.ENDED:
                 return n, True
         return n, False
@@ -334,7 +338,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             memory.relocate(self._ag, self._model.a, -1, -1)
             self._ag.S[GEOM] += 1
         if self.v_opt == "auto":
-            self._model.raise_optimism(self._horizon * max(0.0, self._r_max))
+            self._model.set_optimism(auto_v_opt(self._horizon, self._r_min, self._r_max))
         row = np.zeros(7)
         core.end_record(self._ag.S, self._ag.F, row)
         return episode_record(*row)
@@ -394,7 +398,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         )
         arrays.update(self._model.state_dict())
         scale_meta, scale_arrays = scale_state(self._scale, self._spread)
-        meta.update(scale_meta, reward_max=None if self._r_max == -np.inf else self._r_max)
+        meta.update(
+            scale_meta,
+            reward_max=None if self._r_max == -np.inf else self._r_max,
+            reward_min=None if self._r_min == np.inf else self._r_min,
+        )
         arrays.update(scale_arrays)
         return meta, arrays
 
@@ -422,4 +430,5 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self._ag.e_xs[: len(e_xs)] = e_xs
         load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
         self._r_max = -np.inf if meta.get("reward_max") is None else float(meta["reward_max"])
+        self._r_min = np.inf if meta.get("reward_min") is None else float(meta["reward_min"])
         self._ag.inv_scale[:] = 1.0 / self._scale

@@ -217,11 +217,11 @@ class Model:
         self.reserve(states=1)
         return self._add_state(self.a)
 
-    def raise_optimism(self, v_opt: float) -> None:
-        """Make untried pairs worth ``v_opt`` from now on (at least what they were worth): every state is
-        backed up once and queued, so that the change reaches its predecessors over the next sweeps."""
+    def set_optimism(self, v_opt: float) -> None:
+        """Make untried pairs worth ``v_opt`` from now on (more or less than before): every state is backed
+        up once and queued, so that the change reaches its predecessors over the next sweeps."""
         a = self.a
-        if v_opt <= a.MP[ModelParam.V_OPT]:
+        if v_opt == a.MP[ModelParam.V_OPT]:
             return
         a.MP[ModelParam.V_OPT] = v_opt
         for s in range(self.n_states):

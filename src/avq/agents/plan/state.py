@@ -23,7 +23,7 @@ import numpy as np
 from avq._numba import borrowed_record
 from avq.agents._params import ParamIndex
 
-__all__ = ["PlanArrays", "PlanParam", "PlanIntParam", "borrowed_plan"]
+__all__ = ["PlanArrays", "PlanParam", "PlanIntParam", "auto_v_opt", "borrowed_plan", "horizon"]
 
 
 class PlanParam(ParamIndex):
@@ -118,3 +118,12 @@ def horizon(env: Any, gamma: float) -> float:
     if gamma == 1.0:
         return float(limit) if limit else float(UNLIMITED_HORIZON)
     return (1.0 - gamma**limit) / (1.0 - gamma) if limit else 1.0 / (1.0 - gamma)
+
+
+def auto_v_opt(horizon: float, r_min: float, r_max: float) -> float:
+    """``v_opt="auto"`` after rewards from ``r_min`` to ``r_max`` (``inf`` and ``-inf`` before any): where no reward
+    below 0 has been seen, R-max's bound, ``horizon`` times the largest reward (0 while none is above 0);
+    once rewards of both signs have been (shaped rewards, where that bound is off by orders of magnitude), and
+    where every reward is a cost, 0: an untried decision is worth ending the episode with nothing more
+    (docs/results/dimensions.md, Optimism on shaped rewards)."""
+    return 0.0 if r_min < 0.0 else horizon * max(0.0, r_max)
