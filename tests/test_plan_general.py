@@ -8,7 +8,7 @@ import pytest
 
 import avq
 from avq.agents.plan import model as _model, tabular
-from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, auto_v_opt, horizon
+from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, auto_v_opt, best_return_to_go, horizon, value_ceiling
 
 from conftest import ScriptedEnv
 
@@ -120,6 +120,48 @@ def test_auto_optimism_is_zero_once_rewards_of_both_signs_were_seen(tmp_path):
     assert loaded.learn(total_episodes=1).v_opt_ == 0.0 and agent.learn(total_episodes=1).v_opt_ == 0.0
     assert auto_v_opt(10.0, 0.0, 2.0) == 20.0 and auto_v_opt(10.0, -0.5, 2.0) == 0.0
     assert auto_v_opt(10.0, np.inf, -np.inf) == 0.0 and auto_v_opt(10.0, -3.0, -1.0) == 0.0
+
+
+def test_the_best_return_to_go_is_the_largest_return_from_any_step_to_the_end():
+    # Rewards -1, 5, -2, 3: from each step to the end, gamma 1: 5, 6, 1, 3; gamma 0.5: 1.375, 4.75, -0.5, 3.
+    assert best_return_to_go([-1.0, 5.0, -2.0, 3.0], 1.0) == 6.0
+    assert best_return_to_go([-1.0, 5.0, -2.0, 3.0], 0.5) == pytest.approx(4.75)
+    assert best_return_to_go([], 1.0) == -np.inf
+
+
+def test_the_ceiling_of_values_holds_only_once_rewards_of_both_signs_were_seen():
+    assert value_ceiling(-1.0, 5.0, 6.0) == 6.0 and value_ceiling(-1.0, 5.0, -3.0) == 0.0
+    assert value_ceiling(0.0, 5.0, 6.0) == np.inf and value_ceiling(-1.0, -0.5, -3.0) == np.inf
+
+
+def test_a_ceiling_stops_a_loop_at_a_gain_from_growing_without_end():
+    # One state whose one action comes back to it with return 1 (gamma 1): Q = 1 + Q, without end.
+    mdl = _model.Model(1, 0.0, -100.0, 1, 1e-9)
+    mdl.add_state()
+    mdl.reserve(edges=1)
+    _model.record(mdl.a, 0, 0, 1.0, 1.0, 0, 1)
+    mdl.set_optimism(0.0, 10.0)
+    mdl.sweep(1000)
+    assert mdl.a.Q[0, 0] == 10.0 and mdl.queued == 0
+    mdl.set_optimism(0.0)  # (no ceiling: one backup of every state, then a hundred more: 111)
+    mdl.sweep(100)
+    assert mdl.a.Q[0, 0] == 111.0 and mdl.a.MP[_model.ModelParam.V_MAX] == _model.NO_CEILING
+
+
+def test_auto_optimism_caps_values_at_the_best_return_to_go_on_shaped_rewards_and_resumes_exactly(tmp_path):
+    # Rewards -1 a step, 2 at the end of the first episode and 3 of the second: from any step to the end at most
+    # 2 (the last step of the first), then 3; every planned value no higher.
+    episodes = (walk([0.1, 0.2, 1.0, 1.1], last_reward=2.0), walk([0.1, 1.0, 1.1, 2.0, 2.1], last_reward=3.0))
+    agent = auto_agent(*episodes)
+    agent.learn(total_episodes=1)
+    assert agent.model_.a.MP[_model.ModelParam.V_MAX] == 2.0 and agent.q_.max() <= 2.0
+    agent.learn(total_episodes=3)
+    assert agent.model_.a.MP[_model.ModelParam.V_MAX] == 3.0 and agent.q_.max() <= 3.0
+    # Saved inside an episode, the file holds that episode's rewards so far and the best return to go.
+    half = auto_agent(*episodes).learn(total_timesteps=11)  # (two episodes of 4 and 5 steps, two of the third)
+    assert half.in_episode and half._ep_rewards == [-1.0, -1.0]
+    loaded = avq.load(half.save(tmp_path / "half.zip"), env=auto_agent(*episodes).env)
+    assert loaded._ep_rewards == [-1.0, -1.0] and loaded._to_go_max == 3.0 and loaded._r_min == -1.0
 
 
 def test_all_negative_rewards_keep_auto_optimism_at_zero():

@@ -14,12 +14,15 @@ import numpy as np
 import pytest
 
 import avq
+from avq.agents.plan import model as _model
 
 DATA = Path(__file__).parent / "data" / "models-0.1.0"
 #: Since 0.1.0, avq-plan merges cells under its model: its parameters (off by default), the model's count of
 #: transitions that go on (m_cint), a counter in its state (S) and a column of its memory (mem_i).
 ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True, "known_radius": None}
-ADDED_ARRAYS = {"m_cint"}
+#: Since then too, v_opt="auto" on rewards of both signs: the current episode's rewards (episode_rewards) and the
+#: model's ceiling of values (a last entry of m_MP, no ceiling unless rewards of both signs were seen).
+ADDED_ARRAYS = {"m_cint", "episode_rewards"}
 GREW = {"S", "mem_i"}
 PAIRS = sorted({re.sub(r"__\d+\.zip$", "", p.name) for p in DATA.glob("*.zip")})
 
@@ -56,8 +59,9 @@ def test_a_model_of_the_previous_release_loads_and_learns_on_as_it_did(tmp_path,
     # (the smallest reward seen, kept since v_opt="auto" is 0 on rewards of both signs: no lower than the largest)
     state_now, state_then = meta_now["state"], meta_then["state"]
     if "reward_min" in state_now and "reward_min" not in state_then:
-        low = state_now.pop("reward_min")
+        low, to_go = state_now.pop("reward_min"), state_now.pop("return_to_go_max")
         assert low is None or low <= state_now["reward_max"]
+        assert (to_go is None) == (low is None)
     # Parameters added since, at the values that keep the old behaviour (merging under a model: off).
     for name, value in ADDED_PARAMS.items():
         if name not in meta_then["params"] and name in meta_now["params"]:
@@ -72,4 +76,7 @@ def test_a_model_of_the_previous_release_loads_and_learns_on_as_it_did(tmp_path,
         if key in GREW and now.shape[:-1] == then.shape[:-1] and now.shape[-1] > then.shape[-1]:
             assert not now[..., then.shape[-1] :].any(), key
             now = now[..., : then.shape[-1]]
+        if key == "m_MP" and len(now) == len(then) + 1:
+            assert now[-1] == _model.NO_CEILING
+            now = now[:-1]
         assert np.array_equal(now, then), key

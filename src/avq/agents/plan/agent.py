@@ -34,7 +34,9 @@ from avq.agents.plan.state import (
     PlanIntParam,
     PlanParam,
     auto_v_opt,
+    best_return_to_go,
     horizon,
+    value_ceiling,
 )
 from avq.agents.plan.sweeping import ModelPlanner
 from avq.quantizer import Codebook
@@ -70,9 +72,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             whose rewards are not known beforehand: the episode's horizon (the environment's time limit;
             without one ``1 / (1 - gamma)``, or 1,000 steps with ``gamma = 1``) times the largest reward seen
             so far, or 0 while no reward > 0 has been seen; and 0 once a reward below 0 has been seen as well
-            (shaped rewards: :func:`avq.agents.plan.state.auto_v_opt`). Brought up to date at the end of every
-            episode (the pairs not yet known and their predecessors are backed up again). ``v_opt_`` is the
-            value in force.
+            (shaped rewards: :func:`avq.agents.plan.state.auto_v_opt`), every planned value then no higher than
+            the largest return seen from any step to an episode's end
+            (:func:`avq.agents.plan.state.value_ceiling`). Brought up to date at the end of every episode (the
+            pairs not yet known and their predecessors are backed up again). ``v_opt_`` is the value in force.
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
             vector, append the observation (docs: explanation/paper.md, Growing).
@@ -236,8 +239,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self._model = _model.Model(
             self.n_actions, 0.0 if isinstance(self.v_opt, str) else self.v_opt, self.v_min, self.known_after, self.tol
         )
-        #: The largest and smallest rewards seen (v_opt="auto").
-        self._r_max, self._r_min = -np.inf, np.inf
+        #: The largest and smallest rewards seen, the largest return to an episode's end from any of its steps,
+        #: and the current episode's rewards (v_opt="auto").
+        self._r_max, self._r_min, self._to_go_max = -np.inf, np.inf, -np.inf
+        self._ep_rewards: list[float] = []
         self._spread = self._new_spread()
         #: The compiled core.step for the argument types of the last step that went through Numba's
         #: dispatcher (see _advance), or None.
@@ -285,7 +290,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
         count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
-        r_max, r_min = self._r_max, self._r_min
+        r_max, r_min, rewards = self._r_max, self._r_min, self._ep_rewards
         a = int(S[ACTION])
         n = 0
         while n < max_steps:
@@ -325,6 +330,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
                 r_max = self._r_max = r
             if r < r_min:
                 r_min = self._r_min = r
+            rewards.append(r)
             if a == core.ENDED:
                 return n, True
         return n, False
@@ -338,7 +344,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             memory.relocate(self._ag, self._model.a, -1, -1)
             self._ag.S[GEOM] += 1
         if self.v_opt == "auto":
-            self._model.set_optimism(auto_v_opt(self._horizon, self._r_min, self._r_max))
+            self._to_go_max = max(self._to_go_max, best_return_to_go(self._ep_rewards, self.gamma))
+            ceiling = value_ceiling(self._r_min, self._r_max, self._to_go_max)
+            self._model.set_optimism(auto_v_opt(self._horizon, self._r_min, self._r_max), ceiling)
+        self._ep_rewards = []
         row = np.zeros(7)
         core.end_record(self._ag.S, self._ag.F, row)
         return episode_record(*row)
@@ -402,7 +411,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             scale_meta,
             reward_max=None if self._r_max == -np.inf else self._r_max,
             reward_min=None if self._r_min == np.inf else self._r_min,
+            return_to_go_max=None if self._to_go_max == -np.inf else self._to_go_max,
         )
+        arrays["episode_rewards"] = np.asarray(self._ep_rewards, dtype=np.float64)
         arrays.update(scale_arrays)
         return meta, arrays
 
@@ -431,4 +442,6 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
         self._r_max = -np.inf if meta.get("reward_max") is None else float(meta["reward_max"])
         self._r_min = np.inf if meta.get("reward_min") is None else float(meta["reward_min"])
+        self._to_go_max = -np.inf if meta.get("return_to_go_max") is None else float(meta["return_to_go_max"])
+        self._ep_rewards = [float(r) for r in arrays.get("episode_rewards", ())]
         self._ag.inv_scale[:] = 1.0 / self._scale

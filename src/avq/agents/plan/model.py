@@ -21,9 +21,9 @@ a pair is known once ``n - cint`` (transitions that left the cell) reaches ``kno
 
 **Optimism** (R-max): a pair tried fewer than ``known`` times leads to a fictitious absorbing
 state worth ``v_opt``: ``Q(s, a) = v_opt``. A new state has every action unknown. **A floor**
-``v_min`` bounds every known value from below, so that a model that loops for ever at a loss
-(a cell whose every action comes back to it, with ``gamma = 1``) converges instead of falling
-without end.
+``v_min`` bounds every known value from below, so that a model that loops for ever at a loss (a cell whose
+every action comes back to it, with ``gamma = 1``) converges instead of falling without end; a ceiling
+``v_max`` (none unless set: :meth:`Model.set_optimism`) bounds it from above against loops at a gain.
 
 **Prioritized sweeping** (Moore & Atkeson 1993): after a transition is recorded, its state is
 backed up at once; whenever a backup changes ``V(s)`` by ``dv``, each predecessor pair
@@ -70,9 +70,11 @@ class ModelParam(ParamIndex):
     V_OPT = auto()  # value of a pair not yet known (optimism)
     V_MIN = auto()  # floor of every known value
     TOL = auto()  # smallest change of a value that is propagated
+    V_MAX = auto()  # ceiling of every known value (inf: none)
 
 
 FIRST = 1e300  # the priority that makes a state's backup come first
+NO_CEILING = float(np.finfo(np.float64).max)  # v_max when none is set (finite: model files hold finite numbers)
 #: The successor of a transition that goes on in its own cell (its value is the pair's own); -1 is terminal.
 CONT = -2
 
@@ -172,8 +174,7 @@ class Model:
 
     Args:
         m: Number of actions.
-        v_opt: Value of a pair tried fewer than ``known`` times (optimism).
-        v_min: Floor of every known value.
+        v_opt, v_min: Value of a pair tried fewer than ``known`` times (optimism); floor of every known value.
         known: Transitions after which a pair's own statistics replace ``v_opt``.
         tol: Smallest change of a value that is propagated.
     """
@@ -181,7 +182,7 @@ class Model:
     def __init__(self, m: int, v_opt: float, v_min: float, known: int, tol: float, states: int = 64) -> None:
         self.m = m
         self.a = _empty(states, m, 4 * states, v_opt)
-        pack_params(ModelParam, {"v_opt": v_opt, "v_min": v_min, "tol": tol}, out=self.a.MP)
+        pack_params(ModelParam, {"v_opt": v_opt, "v_min": v_min, "tol": tol, "v_max": NO_CEILING}, out=self.a.MP)
         self.a.C[KNOWN] = known
         self._add_state, self._sweep = Compiled(add_state), Compiled(sweep)
 
@@ -217,13 +218,13 @@ class Model:
         self.reserve(states=1)
         return self._add_state(self.a)
 
-    def set_optimism(self, v_opt: float) -> None:
-        """Make untried pairs worth ``v_opt`` from now on (more or less than before): every state is backed
-        up once and queued, so that the change reaches its predecessors over the next sweeps."""
-        a = self.a
-        if v_opt == a.MP[ModelParam.V_OPT]:
+    def set_optimism(self, v_opt: float, v_max: float = NO_CEILING) -> None:
+        """Make untried pairs worth ``v_opt`` and no known value more than ``v_max`` from now on: every state is
+        backed up once and queued, so that a change reaches its predecessors over the next sweeps."""
+        a, v_max = self.a, min(v_max, NO_CEILING)
+        if v_opt == a.MP[ModelParam.V_OPT] and v_max == a.MP[ModelParam.V_MAX]:
             return
-        a.MP[ModelParam.V_OPT] = v_opt
+        a.MP[ModelParam.V_OPT], a.MP[ModelParam.V_MAX] = v_opt, v_max
         for s in range(self.n_states):
             self.queue(s, FIRST)
         self.sweep(self.n_states)
@@ -330,8 +331,7 @@ def backup(m: ModelArrays, s: int) -> float:
                     stays += e_disc[e]
                 e = e_next[e]
             q = total / (n - stays)
-            if q < MP[ModelParam.V_MIN]:
-                q = MP[ModelParam.V_MIN]
+            q = min(max(q, MP[ModelParam.V_MIN]), MP[ModelParam.V_MAX])
         Q[s, a] = q
         if q > best:
             best = q

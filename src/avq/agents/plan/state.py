@@ -19,11 +19,21 @@ from enum import auto
 from typing import Any, NamedTuple
 
 import numpy as np
+from scipy.signal import lfilter
 
 from avq._numba import borrowed_record
 from avq.agents._params import ParamIndex
 
-__all__ = ["PlanArrays", "PlanParam", "PlanIntParam", "auto_v_opt", "borrowed_plan", "horizon"]
+__all__ = [
+    "PlanArrays",
+    "PlanParam",
+    "PlanIntParam",
+    "auto_v_opt",
+    "best_return_to_go",
+    "borrowed_plan",
+    "horizon",
+    "value_ceiling",
+]
 
 
 class PlanParam(ParamIndex):
@@ -127,3 +137,20 @@ def auto_v_opt(horizon: float, r_min: float, r_max: float) -> float:
     where every reward is a cost, 0: an untried decision is worth ending the episode with nothing more
     (docs/results/dimensions.md, Optimism on shaped rewards)."""
     return 0.0 if r_min < 0.0 else horizon * max(0.0, r_max)
+
+
+def value_ceiling(r_min: float, r_max: float, to_go_max: float) -> float:
+    """The ceiling of every planned value with ``v_opt="auto"`` (``inf``: none): once rewards of both signs have
+    been seen, the largest return from any step of an episode to its end seen so far (``to_go_max``; no lower
+    than 0, the value of an untried decision then). On shaped rewards an aggregated model holds loops at a gain
+    that the task does not have (a cell's states do not share its loops), and without a ceiling their planned
+    values grow without end (docs/results/dimensions.md, Optimism on shaped rewards)."""
+    return max(0.0, to_go_max) if r_min < 0.0 < r_max else np.inf
+
+
+def best_return_to_go(rewards: Any, gamma: float) -> float:
+    """The largest discounted return from any step of an episode (its ``rewards`` in order) to its end; ``-inf``
+    for an episode without rewards."""
+    if len(rewards) == 0:
+        return -np.inf
+    return float(lfilter([1.0], [1.0, -gamma], np.asarray(rewards, dtype=np.float64)[::-1]).max())
