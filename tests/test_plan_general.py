@@ -164,6 +164,18 @@ def test_auto_optimism_caps_values_at_the_best_return_to_go_on_shaped_rewards_an
     assert loaded._ep_rewards == [-1.0, -1.0] and loaded._to_go_max == 3.0 and loaded._r_min == -1.0
 
 
+def test_auto_optimism_on_a_maze_is_the_same_on_both_paths():
+    # GridMaze's rewards take both signs (-1 a move, -10 a bump, +10 at the goal); the fused loop sees no rewards
+    # in Python, so with v_opt="auto" the agent steps the maze from Python whatever fused says.
+    runs = [
+        avq.make_agent("avq-plan", gym.make("avq/GridMaze-v0"), seed=3, v_opt="auto", fused=f).learn(total_episodes=20)
+        for f in (True, False)
+    ]
+    assert runs[0].v_opt_ == runs[1].v_opt_ == 0.0
+    assert runs[0].model_.a.MP[_model.ModelParam.V_MAX] == runs[1].model_.a.MP[_model.ModelParam.V_MAX] <= 10.0
+    assert np.array_equal(runs[0].q_, runs[1].q_) and runs[0].num_timesteps == runs[1].num_timesteps
+
+
 def test_all_negative_rewards_keep_auto_optimism_at_zero():
     agent = line_agent(LINE, v_opt="auto").learn(total_episodes=2)
     assert agent.v_opt_ == 0.0
