@@ -4,7 +4,7 @@ potential-based shaping (``MountainCar-shaped``: rewards of both signs, the same
 used to choose the rule, its final return unshaped).
 
 ``avq``'s general entry (``PlanningAVQ``'s signature defaults, as ``make_agent`` gives a task of the user's own;
-CartPole-v1's own entry is not used) with ``v_opt`` "auto" (R-max's bound: the horizon times the largest reward
+the entries of CartPole-v1 and Acrobot-v1 are not used) with ``v_opt`` "auto" (R-max's bound: the horizon times the largest reward
 seen) and with fixed values, beside ``tiles`` and a random policy. Per run: the final return (mean of the last
 100 episodes), the cells and ``v_opt_`` at the end; per configuration the median and range over the seeds.
 Writes ``OUT/optimism.csv`` (``--out``, default ``docs/data``); LunarLander-v3 needs ``pip install
@@ -13,6 +13,7 @@ Writes ``OUT/optimism.csv`` (``--out``, default ``docs/data``); LunarLander-v3 n
     python benchmarks/optimism.py                                  # seeds 0-2: 5 min on 2 cores
     python benchmarks/optimism.py --seeds 10-19 --tasks LunarLander-v3 --v-opt auto 0
     python benchmarks/optimism.py --seeds 0-14 --tasks MountainCar-shaped --v-opt auto --baselines
+    python benchmarks/optimism.py --seeds 10-19 --tasks CartPole-v1 MountainCar-v0 Acrobot-v1 --v-opt auto
 """
 
 from __future__ import annotations
@@ -33,7 +34,15 @@ from dimensions import CARTPOLE_BOUNDS  # noqa: E402
 import avq  # noqa: E402
 
 #: Episodes per run and the ``v_opt`` values measured on each task.
-TASKS = {"LunarLander-v3": 1000, "CartPole-v1": 300, "MountainCar-shaped": 300}
+TASKS = {
+    "LunarLander-v3": 1000,
+    "CartPole-v1": 300,
+    "MountainCar-shaped": 300,
+    "MountainCar-v0": 300,
+    "Acrobot-v1": 300,
+}
+#: The tasks of the default run (the others on demand: the general entry on the classic tasks, ``--tasks``).
+DEFAULT_TASKS = ("LunarLander-v3", "CartPole-v1", "MountainCar-shaped")
 V_OPTS = ("auto", 200.0, 100.0, 30.0, 0.0, -50.0)
 TAIL = 100
 FIELDS = ("task", "agent", "v_opt", "seed", "episodes", "final_return", "cells", "v_opt_end", "env_steps", "wall_s")
@@ -113,7 +122,7 @@ def seeds_of(text: str) -> list[int]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS))
+    ap.add_argument("--tasks", nargs="+", default=list(DEFAULT_TASKS), choices=list(TASKS))
     ap.add_argument("--seeds", default="0-2")
     ap.add_argument("--v-opt", nargs="+", default=[str(v) for v in V_OPTS], help='"auto" or numbers')
     ap.add_argument("--baselines", nargs="*", default=["tiles", "random"], choices=["tiles", "random"])

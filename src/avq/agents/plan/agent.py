@@ -290,7 +290,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
         count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
-        r_max, r_min, rewards = self._r_max, self._r_min, self._ep_rewards
+        r_max, r_min = self._r_max, self._r_min
+        keep = self._ep_rewards.append if self.v_opt == "auto" else None  # (only "auto" reads them)
         a = int(S[ACTION])
         n = 0
         while n < max_steps:
@@ -330,7 +331,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
                 r_max = self._r_max = r
             if r < r_min:
                 r_min = self._r_min = r
-            rewards.append(r)
+            if keep is not None:
+                keep(r)
             if a == core.ENDED:
                 return n, True
         return n, False
