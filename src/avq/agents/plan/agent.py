@@ -356,8 +356,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
 
     # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------
     def _fused_runner(self):
-        # (The fused loops estimate no scale, which the bounded mazes they run need not, and see no rewards in
-        # Python, which v_opt="auto" needs: then the environment is stepped from Python.)
+        # (The fused loops estimate no scale and see no rewards in Python, which v_opt="auto" reads.)
         fusable = self.fused and not self._estimated.any() and self.v_opt != "auto"
         maze = _maze_loop.plan(self.env) if fusable else None
         if maze is None:
