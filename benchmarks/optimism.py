@@ -7,7 +7,7 @@ used to choose the rule, its final return unshaped).
 the entries of CartPole-v1 and Acrobot-v1 are not used) with ``v_opt`` "auto" (R-max's bound: the horizon times the largest reward
 seen) and with fixed values, beside ``tiles`` and a random policy. Per run: the final return (mean of the last
 100 episodes), the cells and ``v_opt_`` at the end; per configuration the median and range over the seeds.
-Writes ``OUT/optimism.csv`` (``--out``, default ``docs/data``); LunarLander-v3 needs ``pip install
+Writes ``OUT/optimism_seedsS.csv`` (``--out``, default ``docs/data``; ``S`` the ``--seeds``); LunarLander-v3 needs ``pip install
 "gymnasium[box2d]"``.
 
     python benchmarks/optimism.py                                  # seeds 0-2: 5 min on 2 cores
@@ -29,7 +29,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 sys.path.insert(0, str(Path(__file__).parent))
-from dimensions import CARTPOLE_BOUNDS  # noqa: E402
+from dimensions import CARTPOLE_BOUNDS, seeds_of  # noqa: E402
 
 import avq  # noqa: E402
 
@@ -113,11 +113,6 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> 
         env_steps=steps,
         wall_s=round(time.perf_counter() - t, 1),
     )
-
-
-def seeds_of(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
 
 
 def main() -> None:

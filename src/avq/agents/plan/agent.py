@@ -213,7 +213,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         )
 
     def _setup(self) -> None:
-        n = len(self._scale)
+        n, cap = len(self._scale), min(self.max_cells, 256) + core.APPENDS_PER_STEP
         values = dict(
             self.get_params(),
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
@@ -223,7 +223,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(
-            V=np.zeros((min(self.max_cells, 256) + core.APPENDS_PER_STEP, n)),
+            V=np.zeros((cap, n)),
             inv_scale=1.0 / self._scale,
             P=pack_params(PlanParam, values),
             IP=pack_params(PlanIntParam, values, dtype=np.int64),
@@ -234,7 +234,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             mem_i=np.zeros((self.memory, 4), dtype=np.int64),
             mem_f=np.zeros((self.memory, 2)),
             e_xs=np.zeros((0, n)),
-            near=_no_neighbours(min(self.max_cells, 256) + core.APPENDS_PER_STEP, self.merge_neighbours),
+            near=_no_neighbours(cap, self.merge_neighbours),
         )
         self._model = _model.Model(
             self.n_actions, 0.0 if isinstance(self.v_opt, str) else self.v_opt, self.v_min, self.known_after, self.tol

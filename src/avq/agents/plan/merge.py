@@ -216,14 +216,18 @@ def merge_pass(ag: PlanArrays, m: ModelArrays) -> int:
             nearest_cells(V, size, i, k, ag.inv_scale, near[1 + i])
         near[0, 0] = S[GEOM]
     found = min(k, size - 1)
-    first = 0
-    while first < size and _partner(ag, m, first, found)[0] < 0:
+    first, j, g = 0, -1, np.inf
+    while first < size:
+        j, g = _partner(ag, m, first, found)
+        if j >= 0:
+            break
         first += 1
     if first == size:
         return 0  # (most passes)
     partner = np.full(size, -1, dtype=np.int64)
     gap = np.full(size, np.inf)
-    for i in range(first, size):
+    partner[first], gap[first] = j, g
+    for i in range(first + 1, size):
         partner[i], gap[i] = _partner(ag, m, i, found)
     for i in range(size):  # (a refused partner is no partner: the refusals depend on the pair alone)
         j = partner[i]

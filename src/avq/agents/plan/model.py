@@ -70,7 +70,7 @@ class ModelParam(ParamIndex):
     V_OPT = auto()  # value of a pair not yet known (optimism)
     V_MIN = auto()  # floor of every known value
     TOL = auto()  # smallest change of a value that is propagated
-    V_MAX = auto()  # ceiling of every known value (inf: none)
+    V_MAX = auto()  # ceiling of every known value (NO_CEILING: none)
 
 
 FIRST = 1e300  # the priority that makes a state's backup come first
