@@ -262,7 +262,7 @@ class Codebook:
 
     Args:
         n_dims: Dimension ``n`` of the vectors.
-        scale: Per-dimension scale ``s`` (> 0), a scalar or a length-``n`` sequence.
+        scale: Per-dimension scale ``s`` (> 0; ``inf`` ignores the dimension), a scalar or a length-``n`` sequence.
         capacity: Initial preallocated number of vectors; storage doubles when full.
 
     Vectors are stored in a preallocated ``(capacity, n)`` array; :attr:`vectors`
@@ -274,8 +274,8 @@ class Codebook:
             raise ValueError(f"n_dims must be >= 1, not {n_dims}")
         self.n_dims = int(n_dims)
         s = np.broadcast_to(np.asarray(scale, dtype=np.float64), (self.n_dims,)).copy()
-        if not np.all(np.isfinite(s)) or np.any(s <= 0):
-            raise ValueError(f"scale must be finite and > 0 in every dimension, not {s.tolist()}")
+        if np.any(np.isnan(s)) or np.any(s <= 0):
+            raise ValueError(f"scale must be > 0 in every dimension (inf: ignored), not {s.tolist()}")
         self.scale = s
         self.inv_scale = 1.0 / s
         self._data = np.zeros((max(int(capacity), 1), self.n_dims), dtype=np.float64)

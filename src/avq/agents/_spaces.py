@@ -10,7 +10,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from avq._validate import check_int
+from avq._validate import check_bool, check_int
+from avq.agents._noise import ObservationLog
 from avq.agents.base import BaseAgent
 
 __all__ = [
@@ -115,19 +116,24 @@ class RunningSpread:
         m2: ``(n,)`` the sum of squared deviations from the mean.
     """
 
-    def __init__(self, n: int, limit: int) -> None:
+    def __init__(self, n: int, limit: int, log: bool = False) -> None:
         self.limit = limit
         self.count = 0
         self.mean = np.zeros(n)
         self.m2 = np.zeros(n)
+        #: With ``log``, the observations themselves, for the noise test (:mod:`avq.agents._noise`).
+        self.log = ObservationLog(n, limit) if log else None
 
     @property
     def full(self) -> bool:
         """True once ``limit`` observations were counted: later ones are not."""
         return self.count >= self.limit
 
-    def add(self, x: Any) -> bool:
-        """Count the observation ``x`` (if not full); return whether later ones are still counted."""
+    def add(self, x: Any, start: bool = False) -> bool:
+        """Count the observation ``x`` (if not full), the first of an episode when ``start``; return whether later
+        ones are still counted."""
+        if self.log is not None:
+            self.log.add(x, start)
         if self.count < self.limit:
             self.count += 1
             delta = x - self.mean
@@ -184,8 +190,13 @@ def refresh_scale(
 
 def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """What a saved agent keeps of its metric: ``(meta, arrays)``, the scale in force and what
-    ``scale="auto"`` counted of the observations (mean and m2 as rows)."""
-    return ({"scale_count": spread.count}, {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])})
+    ``scale="auto"`` counted of the observations (mean and m2 as rows), and the observations the noise test
+    keeps (as rows, with whether each followed the one before it as a last column)."""
+    arrays = {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])}
+    if spread.log is not None:
+        log = spread.log
+        arrays["noise_log"] = np.column_stack([log.obs[: log.count], log.follows[: log.count]])
+    return {"scale_count": spread.count}, arrays
 
 
 def load_scale_state(
@@ -207,6 +218,12 @@ def load_scale_state(
         raise ValueError(f"array scale_spread has shape {rows.shape}; expected (2, {n})")
     spread.count = min(int(meta.get("scale_count", 0)), spread.limit)
     spread.mean[:], spread.m2[:] = rows
+    if spread.log is not None:
+        log, kept = spread.log, arrays.get("noise_log", np.zeros((0, n + 1)))
+        if kept.ndim != 2 or kept.shape[1] != n + 1 or len(kept) > len(log.obs):
+            raise ValueError(f"array noise_log has shape {kept.shape}; expected (at most {len(log.obs)}, {n + 1})")
+        log.count = len(kept)
+        log.obs[: log.count], log.follows[: log.count] = kept[:, :n], kept[:, n] > 0
     scale[:] = saved
 
 
@@ -340,6 +357,7 @@ class ScaledMetric(BaseAgent):
         scale_warmup: int,
         scale_factor: float | Sequence[float],
         obs_bounds: Sequence[Any] | None,
+        ignore_noise: bool = True,
     ) -> None:
         """Store and check the metric's parameters (``scale`` as given), make the environment
         (``BaseAgent``), then resolve the scale in force and ``scale_factor`` as a number or a list. A
@@ -347,12 +365,17 @@ class ScaledMetric(BaseAgent):
         self.scale = scale
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
+        self.ignore_noise = check_bool("ignore_noise", ignore_noise)
         super().__init__(env, seed)
         #: The dimensions whose scale is estimated from the observations (scale="auto" without finite bounds).
         self._scale, self._estimated, self._factor = scale_setting(
             self.env.observation_space, self.scale, self.obs_bounds, scale_factor
         )
         self.scale_factor = float(self._factor[0]) if np.ndim(scale_factor) == 0 else self._factor.tolist()
+        #: ignore_noise with scale "auto" or "spread": the noise test (avq.agents._noise) is to be made once the
+        #: first scale_warmup observations are counted; _noise_tested once it is.
+        self._tests_noise = self.ignore_noise and isinstance(self.scale, str)
+        self._noise_tested = False
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete(type(self).__name__, obs_space, act_space, "there is nothing to quantize")
@@ -361,9 +384,49 @@ class ScaledMetric(BaseAgent):
     def scale_(self) -> np.ndarray:
         """The metric's scale in force, one number per dimension: ``scale``, or the ``high - low`` of the
         observation bounds (``obs_bounds`` or the space's), or with ``scale="auto"`` where those are not
-        finite the estimate from the observations so far."""
+        finite the estimate from the observations so far; ``inf`` for a dimension found to be noise
+        (``ignore_noise``), which the distance then ignores."""
         return self._scale.copy()
 
+    @property
+    def _learns_metric(self) -> bool:
+        """Whether the metric may still change at the end of an episode (``scale="auto"``'s estimates or the
+        noise test): the fused loops, which count no observations, are then not used."""
+        return bool(self._estimated.any()) or (self._tests_noise and not self._noise_tested)
+
     def _new_spread(self) -> RunningSpread:
-        """The observations to count for ``scale="auto"`` (none when no dimension is estimated)."""
-        return RunningSpread(len(self._scale), self.scale_warmup if self._estimated.any() else 0)
+        """The observations to count for ``scale="auto"`` and the noise test (none when neither needs them)."""
+        counted = self._estimated.any() or self._tests_noise
+        return RunningSpread(len(self._scale), self.scale_warmup if counted else 0, log=self._tests_noise)
+
+    def _refresh_metric(self, spread: RunningSpread, inv_scale: np.ndarray) -> bool:
+        """At the end of an episode: ``scale="auto"``'s estimates brought up to date (:func:`refresh_scale`), and
+        once ``spread`` counted its ``scale_warmup`` observations, the noise test made (once): a dimension found
+        to be noise gets an infinite scale and ``inv_scale`` 0. Returns whether the metric changed."""
+        noise = np.isinf(self._scale)
+        changed = bool(self._estimated.any()) and refresh_scale(
+            self._scale, inv_scale, self._estimated & ~noise, spread, self._factor
+        )
+        if spread.log is not None and not self._noise_tested and spread.full:
+            self._noise_tested = True
+            found = spread.log.noise()
+            if found.any():
+                self._scale[found], inv_scale[found] = np.inf, 0.0
+                changed = True
+        return changed
+
+    def _metric_state(self, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """What a saved agent keeps of its metric (:func:`scale_state`, and whether the noise test was made)."""
+        noise = np.isinf(self._scale)
+        meta, arrays = scale_state(np.where(noise, 1.0, self._scale), spread)  # (a model file holds finite numbers)
+        arrays["noise_dims"] = noise.astype(np.int8)
+        return dict(meta, noise_tested=self._noise_tested), arrays
+
+    def _load_metric_state(self, meta: dict[str, Any], arrays: dict[str, np.ndarray], spread: RunningSpread) -> None:
+        """Restore what :meth:`_metric_state` saved (:func:`load_scale_state`)."""
+        noise = arrays.get("noise_dims", np.zeros(len(self._scale), dtype=np.int8))
+        if noise.shape != self._scale.shape or (noise.any() and not self._tests_noise):
+            raise ValueError(f"array noise_dims {noise.tolist()} does not fit the parameters' scale and ignore_noise")
+        load_scale_state(meta, arrays, self._scale, self._estimated | (noise > 0), spread)
+        self._scale[noise > 0] = np.inf
+        self._noise_tested = bool(meta.get("noise_tested", False))

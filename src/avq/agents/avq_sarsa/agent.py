@@ -20,12 +20,7 @@ from avq._validate import (
 from avq.agents import _maze_loop
 from avq.agents._maze_loop import N_R
 from avq.agents._params import pack_params
-from avq.agents._spaces import (
-    ScaledMetric,
-    load_scale_state,
-    refresh_scale,
-    scale_state,
-)
+from avq.agents._spaces import ScaledMetric
 from avq.agents.avq_sarsa import episode_end, generic, kernels as core
 from avq.agents.avq_sarsa.fused import fused_loop
 from avq.agents.avq_sarsa.generic import GenericPath
@@ -129,6 +124,9 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
             task whose decisions depend more on some dimensions than on others (Acrobot's velocities).
         obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the
             scale ``high - low`` is taken, with ``scale="auto"`` or None.
+        ignore_noise: With ``scale="auto"`` or ``"spread"``: once ``scale_warmup`` observations are counted, a
+            dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``)
+            gets an infinite scale, so the distance and the cells ignore it.
         max_repeat: Beyond the paper: a decision ends after at most this many primitive steps,
             even in the same cell (>= 1; None, the paper: it is repeated until the cell changes).
             It is then learned like a decision that ended in another cell: the Sarsa(λ) update of
@@ -198,6 +196,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         scale_warmup: int = 1000,
         scale_factor: float | Sequence[float] = 1.0,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
+        ignore_noise: bool = True,
         max_cells: int = 10_000,
         max_repeat: int | None = None,
         fused: bool = True,
@@ -236,7 +235,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         self.max_cells = check_int("max_cells", max_cells, 1)
         self.max_repeat = check_optional(check_int, "max_repeat", max_repeat, 1)
         self.fused = check_bool("fused", fused)
-        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds)
+        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds, ignore_noise)
 
     # -- spaces and scale ---------------------------------------------------------------
     def _update_scale(self) -> None:
@@ -244,7 +243,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         standard deviations of the observations counted (where that is > 0). The codebook keeps its vectors
         in observation units, so the metric re-expresses them; only the cached pairs of the merge pass depend
         on it, and a new geometry version recomputes them."""
-        if refresh_scale(self._scale, self._inv_scale, self._estimated, self._spread, self._factor):
+        if self._refresh_metric(self._spread, self._inv_scale):
             self._S[core.GEOM] += 1
 
     # -- learned state ------------------------------------------------------------------
@@ -296,10 +295,10 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
     def _begin_episode(self, obs: np.ndarray) -> None:
         x = self._as_obs(obs, 0)
         self._compiled(generic.generic_start, x, 0, 0.0)
-        self._spread.add(x)
+        self._spread.add(x, start=True)
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._estimated.any():
+        if self._learns_metric:
             self._update_scale()  # (before the merge pass, which then sees the new metric)
         episode_end.end_episode(*self._state(), self._rec)  # type: ignore[call-arg]
         return episode_record(*self._rec)
@@ -307,7 +306,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
     # -- the fused loop (avq.agents.avq_sarsa.fused) ------------------------------------------------
     def _fused_runner(self):
         # (The fused loops estimate no scale; the bounded mazes they run need none.)
-        maze = _maze_loop.plan(self.env) if self.fused and not self._estimated.any() else None
+        maze = _maze_loop.plan(self.env) if self.fused and not self._learns_metric else None
         if maze is None:
             return None
         mz = _maze_loop.maze_arguments(maze)
@@ -348,7 +347,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
         arrays.update(codebook=self.codebook_, q=self.q_, born=self._born[: self.n_cells].copy())  # (p, 2 + m)
-        scale_meta, scale_arrays = scale_state(self._scale, self._spread)
+        scale_meta, scale_arrays = self._metric_state(self._spread)
         meta.update(scale_meta)
         arrays.update(scale_arrays)
         return meta, arrays
@@ -368,7 +367,7 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
             born = np.concatenate([born, np.zeros((len(q), self.n_actions), dtype=np.int64)], axis=1)
         if born.shape != (len(q), 2 + self.n_actions):
             raise ValueError(f"array born has shape {born.shape}; expected ({len(q)}, {2 + self.n_actions})")
-        load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
+        self._load_metric_state(meta, arrays, self._spread)
         self._inv_scale[:] = 1.0 / self._scale
         p = len(q)
         self._ensure_capacity(p)

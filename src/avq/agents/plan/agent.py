@@ -12,12 +12,7 @@ from avq._numba import Compiled, direct_call
 from avq._validate import PlanningSettings, check_bool, check_int, check_optional, check_planning_params, check_range
 from avq.agents import _maze_loop
 from avq.agents._params import pack_params
-from avq.agents._spaces import (
-    ScaledMetric,
-    load_scale_state,
-    refresh_scale,
-    scale_state,
-)
+from avq.agents._spaces import ScaledMetric
 from avq.agents.base import EpisodeRecord, episode_record
 from avq.agents.plan import kernels as core, memory, model as _model
 from avq.agents.plan.fused import run_plan_maze
@@ -104,6 +99,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             dimension of factor 2 counts half as much in the distance, so its cells are twice as wide. For a
             task whose decisions depend more on some dimensions than on others (Acrobot's velocities).
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
+        ignore_noise: With ``scale="auto"`` or ``"spread"``: once ``scale_warmup`` observations are counted, a
+            dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``)
+            gets an infinite scale, so the distance and the cells ignore it.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its
             cell, at an observation farther than ``d_min`` from every vector, ends there, and that
@@ -164,6 +162,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         scale_warmup: int = 1000,
         scale_factor: float | Sequence[float] = 1.0,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
+        ignore_noise: bool = True,
         max_cells: int = 2048,
         split_after: int | None = 5,
         rho: float | None = None,
@@ -190,7 +189,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self.merge_same_action = check_bool("merge_same_action", merge_same_action)
         self.known_radius = check_optional(check_range, "known_radius", known_radius, 0.0, np.inf, high_open=True)
         self.fused = check_bool("fused", fused)
-        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds)
+        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds, ignore_noise)
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = horizon(self.env, self.gamma)
 
@@ -273,7 +272,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self._draws.reserve()
         if core.start(self._ag, self._model.a, self._draws.src, x) == core.NOT_FINITE:
             self._refuse_non_finite(obs, 0.0, 0)
-        self._spread.add(x)
+        self._spread.add(x, start=True)
 
     def _as_obs(self, obs: Any, step: int) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
@@ -338,10 +337,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._estimated.any() and refresh_scale(
-            self._scale, self._ag.inv_scale, self._estimated, self._spread, self._factor
-        ):
-            # scale="auto": the metric changed, so the cells of the remembered transitions may have; the model
+        if self._refresh_metric(self._spread, self._ag.inv_scale):
+            # scale="auto" or the noise test: the metric changed, so the cells of the remembered transitions may have; the model
             # follows them (the codebook keeps its vectors in observation units).
             memory.relocate(self._ag, self._model.a, -1, -1)
             self._ag.S[GEOM] += 1
@@ -357,7 +354,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------
     def _fused_runner(self):
         # (The fused loops estimate no scale and see no rewards in Python, which v_opt="auto" reads.)
-        fusable = self.fused and not self._estimated.any() and self.v_opt != "auto"
+        fusable = self.fused and not self._learns_metric and self.v_opt != "auto"
         maze = _maze_loop.plan(self.env) if fusable else None
         if maze is None:
             return None
@@ -409,7 +406,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             e_xs=ag.e_xs[: int(self._model.a.C[_model.N_EDGES])].copy(),
         )
         arrays.update(self._model.state_dict())
-        scale_meta, scale_arrays = scale_state(self._scale, self._spread)
+        scale_meta, scale_arrays = self._metric_state(self._spread)
         meta.update(
             scale_meta,
             reward_max=None if self._r_max == -np.inf else self._r_max,
@@ -442,7 +439,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         if e_xs.shape != (edges, n):
             raise ValueError(f"array e_xs has shape {e_xs.shape}; expected ({edges}, {n})")
         self._ag.e_xs[: len(e_xs)] = e_xs
-        load_scale_state(meta, arrays, self._scale, self._estimated, self._spread)
+        self._load_metric_state(meta, arrays, self._spread)
         self._r_max = -np.inf if meta.get("reward_max") is None else float(meta["reward_max"])
         self._r_min = np.inf if meta.get("reward_min") is None else float(meta["reward_min"])
         self._to_go_max = -np.inf if meta.get("return_to_go_max") is None else float(meta["return_to_go_max"])

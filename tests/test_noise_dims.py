@@ -1,0 +1,131 @@
+"""``ignore_noise``: a dimension that the observation before does not predict is noise, and the agents' metric
+(``avq``'s planning agent and ``avq-sarsa``) gives it an infinite scale once ``scale_warmup`` observations are
+counted; the test itself (avq.agents._noise) on observations made by hand; saved and resumed exactly."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import avq
+from avq import AVQSarsa, PlanningAVQ, make_agent
+from avq.agents._noise import NOISE_R2, ObservationLog, noise_dims
+from avq.envs import IrrelevantDims
+
+
+def walk_and_noise(t, seed=0):
+    """``t`` observations in one episode: dimension 0 a smooth drift, 1 drawn afresh each step, 2 constant."""
+    rng = np.random.default_rng(seed)
+    obs = np.column_stack([np.cumsum(rng.uniform(-0.01, 0.01, t)), rng.uniform(0, 1, t), np.full(t, 0.3)])
+    follows = np.ones(t, dtype=bool)
+    follows[0] = False
+    return obs, follows
+
+
+def test_a_dimension_drawn_afresh_each_step_is_noise_and_a_drifting_or_constant_one_is_not():
+    obs, follows = walk_and_noise(500)
+    assert noise_dims(obs, follows).tolist() == [False, True, False]
+
+
+def test_a_dimension_the_previous_observation_predicts_through_another_is_not_noise():
+    # x1[t + 1] = x0[t]: not its own past but another dimension's, which a linear prediction sees.
+    rng = np.random.default_rng(1)
+    x0 = rng.uniform(0, 1, 400)
+    obs = np.column_stack([x0, np.r_[0.0, x0[:-1]]])
+    assert noise_dims(obs, np.r_[False, np.ones(399, dtype=bool)]).tolist() == [True, False]
+
+
+def test_explained_share_is_compared_with_the_threshold():
+    # x[t + 1] = c * x[t] + e: the share explained is c^2 Var(x) / Var(x) = c^2 for a stationary AR(1).
+    rng = np.random.default_rng(2)
+    for c, noise in ((0.2, True), (0.45, False)):  # 0.04 and 0.2 against NOISE_R2 0.1
+        x = np.zeros(20_000)
+        for t in range(1, len(x)):
+            x[t] = c * x[t - 1] + rng.normal()
+        assert NOISE_R2 == 0.1
+        assert noise_dims(x[:, None], np.r_[False, np.ones(len(x) - 1, dtype=bool)]).tolist() == [noise]
+
+
+def test_only_pairs_within_an_episode_count():
+    # 40 steps of a slow drift, then 400 episodes of one observation each drawn afresh: within episodes the
+    # dimension is predictable; counted across the resets it would look like noise.
+    rng = np.random.default_rng(3)
+    obs = np.r_[np.linspace(0, 1, 40), rng.uniform(0, 1, 400)][:, None]
+    follows = np.r_[False, np.ones(39, dtype=bool), np.zeros(400, dtype=bool)]
+    assert noise_dims(obs, follows).tolist() == [False]
+    assert noise_dims(obs, np.r_[False, np.ones(439, dtype=bool)]).tolist() == [True]
+
+
+def test_too_few_pairs_find_nothing():
+    obs, follows = walk_and_noise(8)  # 7 pairs < 2 * (3 + 1)
+    assert not noise_dims(obs, follows).any()
+    obs, follows = walk_and_noise(500)
+    follows[8:] = False  # the same observations, 7 pairs among them
+    assert not noise_dims(obs, follows).any()
+
+
+def test_the_log_keeps_the_first_observations_and_whether_each_follows_the_one_before():
+    log = ObservationLog(2, 3)
+    assert log.add(np.array([1.0, 2.0]), start=True) and log.add(np.array([3.0, 4.0]))
+    assert not log.add(np.array([5.0, 6.0]), start=True)  # full now
+    assert not log.add(np.array([7.0, 8.0])) and log.count == 3 and log.full
+    assert log.obs.tolist() == [[1, 2], [3, 4], [5, 6]] and log.follows.tolist() == [False, True, False]
+
+
+def mountain_car(k, kind="noise"):
+    return IrrelevantDims(gym.make("MountainCar-v0"), k, kind=kind)
+
+
+@pytest.mark.parametrize("cls", [PlanningAVQ, AVQSarsa])
+def test_the_agents_ignore_noise_dimensions_once_the_warmup_is_counted(cls):
+    agent = cls(mountain_car(2), seed=0, scale_warmup=300).learn(total_timesteps=250)
+    assert np.isfinite(agent.scale_).all()  # (not yet: 250 of 300 observations)
+    agent.learn(total_timesteps=400)  # (the test is made at the end of an episode)
+    assert agent.scale_[:2].tolist() == pytest.approx([1.8, 0.14]) and np.isinf(agent.scale_[2:]).all()
+    # The cells no longer depend on the noise dimensions.
+    rng = np.random.default_rng(0)
+    obs = np.column_stack([rng.uniform(-1.2, 0.6, 200), rng.uniform(-0.07, 0.07, 200), rng.uniform(0, 1, (200, 2))])
+    moved = obs.copy()
+    moved[:, 2:] = rng.uniform(0, 1, (200, 2))
+    assert agent.cells(obs).tolist() == agent.cells(moved).tolist()
+    assert agent.predict(obs)[0].tolist() == agent.predict(moved)[0].tolist()
+
+
+@pytest.mark.parametrize(
+    "params, env",
+    [
+        (dict(ignore_noise=False), mountain_car(2)),  # off
+        (dict(scale=None), mountain_car(2)),  # a metric the user gave
+        ({}, mountain_car(2, kind="walk")),  # a slow walk is predictable: not found
+    ],
+)
+def test_nothing_is_ignored_when_the_test_is_off_or_finds_nothing(params, env):
+    agent = PlanningAVQ(env, seed=0, scale_warmup=300, **params).learn(total_timesteps=1000)
+    assert np.isfinite(agent.scale_).all()
+
+
+def test_on_the_task_itself_the_run_is_the_same_with_and_without_the_test():
+    runs = [
+        make_agent("avq", "CartPole-v1", seed=3, scale_warmup=200, ignore_noise=on).learn(total_episodes=30)
+        for on in (True, False)
+    ]
+    assert np.isfinite(runs[0].scale_).all()
+    assert np.array_equal(runs[0].codebook_, runs[1].codebook_) and np.array_equal(runs[0].q_, runs[1].q_)
+
+
+@pytest.mark.parametrize("name", ["avq", "avq-sarsa"])
+@pytest.mark.parametrize("first", [2, 8])  # saved during the warm-up (1,000 observations, 200 an episode), and after
+def test_the_test_is_saved_and_resumed_exactly(tmp_path, name, first):
+    whole = make_agent(name, mountain_car(2), seed=1).learn(total_episodes=15)
+    part = make_agent(name, mountain_car(2), seed=1).learn(total_episodes=first)
+    loaded = avq.load(part.save(tmp_path / "m.zip"), env=part.env)
+    assert np.array_equal(loaded.scale_, part.scale_) and np.isinf(part.scale_[2:]).all() == (first == 8)
+    loaded.learn(total_episodes=15 - first)
+    assert np.isinf(whole.scale_[2:]).all() and np.array_equal(loaded.scale_, whole.scale_)
+    assert np.array_equal(loaded.codebook_, whole.codebook_) and np.array_equal(loaded.q_, whole.q_)
+    assert loaded.episode_history()["return"].tolist() == whole.episode_history()["return"].tolist()
+
+
+@pytest.mark.parametrize("cls", [PlanningAVQ, AVQSarsa])
+def test_a_bad_ignore_noise_gets_a_clear_error(cls):
+    with pytest.raises(ValueError, match="ignore_noise must be True or False"):
+        cls("MountainCar-v0", ignore_noise="yes")
