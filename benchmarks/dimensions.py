@@ -239,9 +239,9 @@ def to_threshold(returns: np.ndarray, steps: np.ndarray, threshold: float) -> tu
     return (None, None) if hit.size == 0 else (int(hit[0] + WINDOW), int(np.sum(steps[: hit[0] + WINDOW])))
 
 
-def irrelevant_run(name: str, task: str, k: int, seed: int, episodes: int) -> dict:
+def irrelevant_run(name: str, task: str, k: int, seed: int, episodes: int, kind: str = "noise") -> dict:
     t0 = time.perf_counter()
-    env = IrrelevantDims(gym.make(task), k)
+    env = IrrelevantDims(gym.make(task), k, kind=kind)
     if name == "dqn":
         agent = ZooDQN(env, task, seed, episodes * gym.spec(task).max_episode_steps)
         agent.learn_episodes(episodes)
@@ -458,6 +458,7 @@ def main() -> None:
     ap.add_argument("--k", default=None, help="comma-separated irrelevant dimensions instead of 0,2,4,8")
     ap.add_argument("--budget", type=int, default=None, help="--dims: env steps a run (200,000; --quick 20,000)")
     ap.add_argument("--episodes", type=int, default=None, help="--irrelevant: episodes a run (300; --quick 60)")
+    ap.add_argument("--kind", choices=("noise", "walk"), default="noise", help="--irrelevant: IrrelevantDims' kind")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs", help="CSVs in OUT/data, figures in OUT/figures (default docs)")
     args = ap.parse_args()
@@ -495,11 +496,16 @@ def main() -> None:
             ks = [int(v) for v in args.k.split(",")] if args.k else QUICK_KS if args.quick else KS
             episodes = args.episodes or (60 if args.quick else 300)
             jobs = [
-                delayed(irrelevant_run)(n, t, k, s, episodes) for t in TASKS for k in ks for n in names for s in seeds
+                delayed(irrelevant_run)(n, t, k, s, episodes, args.kind)
+                for t in TASKS
+                for k in ks
+                for n in names
+                for s in seeds
             ]
-            print(f"{len(jobs)} runs: {', '.join(TASKS)}, k {ks}, seeds {seeds}, {episodes} episodes")
+            print(f"{len(jobs)} runs: {', '.join(TASKS)}, k {ks} ({args.kind}), seeds {seeds}, {episodes} episodes")
             new = Parallel(args.jobs)(jobs)
-            rows = write_csv(out / "data" / "dimensions_irrelevant.csv", IRR_FIELDS, new, names)
+            csv_name = "dimensions_irrelevant.csv" if args.kind == "noise" else f"dimensions_irrelevant_{args.kind}.csv"
+            rows = write_csv(out / "data" / csv_name, IRR_FIELDS, new, names)
             irrelevant_table(rows)
         print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)\n")
     if args.plot:
