@@ -20,9 +20,12 @@ DATA = Path(__file__).parent / "data" / "models-0.1.0"
 #: Since 0.1.0, avq-plan merges cells under its model: its parameters (off by default), the model's count of
 #: transitions that go on (m_cint), a counter in its state (S) and a column of its memory (mem_i).
 ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True, "known_radius": None}
+#: The noise test (ignore_noise) came later still: a file without it loads with it off (save_util.ADDED_SINCE), and
+#: saves its flags (noise_dims, none) and whether the test was made (noise_tested, never).
+ADDED_PARAMS["ignore_noise"] = False
 #: Since then too, v_opt="auto" on rewards of both signs: the current episode's rewards (episode_rewards) and the
 #: model's ceiling of values (a last entry of m_MP, no ceiling unless rewards of both signs were seen).
-ADDED_ARRAYS = {"m_cint", "episode_rewards"}
+ADDED_ARRAYS = {"m_cint", "episode_rewards", "noise_dims"}
 GREW = {"S", "mem_i"}
 PAIRS = sorted({re.sub(r"__\d+\.zip$", "", p.name) for p in DATA.glob("*.zip")})
 
@@ -62,6 +65,8 @@ def test_a_model_of_the_previous_release_loads_and_learns_on_as_it_did(tmp_path,
         low, to_go = state_now.pop("reward_min"), state_now.pop("return_to_go_max")
         assert low is None or low <= state_now["reward_max"]
         assert (to_go is None) == (low is None)
+    if "noise_tested" in state_now and "noise_tested" not in state_then:
+        assert state_now.pop("noise_tested") is False
     # Parameters added since, at the values that keep the old behaviour (merging under a model: off).
     for name, value in ADDED_PARAMS.items():
         if name not in meta_then["params"] and name in meta_now["params"]:

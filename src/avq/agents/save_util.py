@@ -16,6 +16,8 @@ the agent's ``defaults_used`` imports the registry's ``DefaultsUsed`` then.)
 
 from __future__ import annotations
 
+import inspect
+
 import io
 import json
 import os
@@ -39,6 +41,9 @@ __all__ = ["FORMAT_VERSION", "save", "load", "env_signature", "check_env_fits"]
 FORMAT_VERSION = 2
 #: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
 _READABLE_VERSIONS = (1, 2)
+#: Parameters added since a file may have been written whose default now behaves otherwise: a file without one
+#: loads with the value that keeps what it did (ignore_noise: the noise test of avq.agents._noise, off before).
+ADDED_SINCE: dict[str, Any] = {"ignore_noise": False}
 
 
 def _env_make_args(env: gym.Env) -> dict[str, Any] | None:
@@ -255,6 +260,9 @@ def load(
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}; pass env= to load it") from None
     params = dict(meta["params"])
+    for name, before in ADDED_SINCE.items():  # (a file from before the parameter keeps its behaviour)
+        if name not in params and name in inspect.signature(cls).parameters:
+            params[name] = before
     env = as_env(env)
     check_env_fits(meta, env, str(path))
     try:
