@@ -17,7 +17,6 @@ the agent's ``defaults_used`` imports the registry's ``DefaultsUsed`` then.)
 from __future__ import annotations
 
 import inspect
-
 import io
 import json
 import os
