@@ -8,7 +8,8 @@ import pytest
 
 import avq
 from avq import AVQSarsa, PlanningAVQ, make_agent
-from avq.agents._noise import NOISE_R2, ObservationLog, noise_dims
+from avq.agents._noise import NOISE_R2, noise_dims
+from avq.agents._spaces import RunningSpread
 from avq.envs import IrrelevantDims
 
 
@@ -64,7 +65,7 @@ def test_too_few_pairs_find_nothing():
 
 
 def test_the_log_keeps_the_first_observations_and_whether_each_follows_the_one_before():
-    log = ObservationLog(2, 3)
+    log = RunningSpread(2, 3, log=True)
     assert log.add(np.array([1.0, 2.0]), start=True) and log.add(np.array([3.0, 4.0]))
     assert not log.add(np.array([5.0, 6.0]), start=True)  # full now
     assert not log.add(np.array([7.0, 8.0])) and log.count == 3 and log.full

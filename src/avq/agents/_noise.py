@@ -10,7 +10,7 @@ Irrelevant dimensions). A dimension that drifts slowly without mattering (``kind
 not found here.
 
 The agents of :class:`avq.agents._spaces.ScaledMetric` with ``ignore_noise`` keep the first ``scale_warmup``
-observations (:class:`ObservationLog`) and, once they have them all, give the noise dimensions an infinite scale
+observations (:class:`avq.agents._spaces.RunningSpread` with ``log``) and, once they have them all, give the noise dimensions an infinite scale
 (weight 0 in the distance).
 """
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["NOISE_R2", "ObservationLog", "noise_dims"]
+__all__ = ["NOISE_R2", "noise_dims"]
 
 #: The share of a dimension's variance below which a linear prediction from the previous observation marks it as
 #: noise (:func:`noise_dims`).
@@ -45,35 +45,3 @@ def noise_dims(obs: np.ndarray, follows: np.ndarray) -> np.ndarray:
     varied = variance > 1e-12 * np.maximum(1.0, np.abs(target).max(axis=0)) ** 2
     explained = 1.0 - residual / np.where(varied, variance, 1.0)
     return varied & (explained < NOISE_R2)
-
-
-class ObservationLog:
-    """The first ``limit`` observations of a run, and for each whether it came one step after the one before it.
-
-    Attributes:
-        obs: ``(limit, n)`` the observations kept (the first :attr:`count` rows).
-        follows: ``(limit,)`` whether each came one step after the one before it in the same episode.
-        count: The observations kept so far.
-    """
-
-    def __init__(self, n: int, limit: int) -> None:
-        self.obs = np.zeros((limit, n))
-        self.follows = np.zeros(limit, dtype=bool)
-        self.count = 0
-
-    @property
-    def full(self) -> bool:
-        """True once ``limit`` observations are kept: later ones are not."""
-        return self.count >= len(self.obs)
-
-    def add(self, x: np.ndarray, start: bool = False) -> bool:
-        """Keep ``x`` (if not full), the first of an episode when ``start``; return whether later ones are kept."""
-        if self.count < len(self.obs):
-            self.obs[self.count] = x
-            self.follows[self.count] = not start
-            self.count += 1
-        return self.count < len(self.obs)
-
-    def noise(self) -> np.ndarray:
-        """:func:`noise_dims` of the observations kept."""
-        return noise_dims(self.obs[: self.count], self.follows[: self.count])

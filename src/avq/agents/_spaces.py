@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int
-from avq.agents._noise import ObservationLog
+from avq.agents._noise import noise_dims
 from avq.agents.base import BaseAgent
 
 __all__ = [
@@ -121,8 +121,10 @@ class RunningSpread:
         self.count = 0
         self.mean = np.zeros(n)
         self.m2 = np.zeros(n)
-        #: With ``log``, the observations themselves, for the noise test (:mod:`avq.agents._noise`).
-        self.log = ObservationLog(n, limit) if log else None
+        #: With ``log``, the observations counted themselves (the first :attr:`count` rows), and whether each came
+        #: one step after the one before it in the same episode: for the noise test (:meth:`noise`).
+        self.obs = np.zeros((limit, n)) if log else None
+        self.follows = np.zeros(limit, dtype=bool)
 
     @property
     def full(self) -> bool:
@@ -132,14 +134,19 @@ class RunningSpread:
     def add(self, x: Any, start: bool = False) -> bool:
         """Count the observation ``x`` (if not full), the first of an episode when ``start``; return whether later
         ones are still counted."""
-        if self.log is not None:
-            self.log.add(x, start)
         if self.count < self.limit:
+            if self.obs is not None:
+                self.obs[self.count], self.follows[self.count] = x, not start
             self.count += 1
             delta = x - self.mean
             self.mean += delta / self.count
             self.m2 += delta * (x - self.mean)
         return self.count < self.limit
+
+    def noise(self) -> np.ndarray:
+        """:func:`avq.agents._noise.noise_dims` of the observations counted (with ``log``)."""
+        assert self.obs is not None
+        return noise_dims(self.obs[: self.count], self.follows[: self.count])
 
     def std(self) -> np.ndarray:
         """``(n,)`` the standard deviation of the observations counted (ddof 0; zeros before any)."""
@@ -193,9 +200,8 @@ def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any
     ``scale="auto"`` counted of the observations (mean and m2 as rows), and the observations the noise test
     keeps (as rows, with whether each followed the one before it as a last column)."""
     arrays = {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])}
-    if spread.log is not None:
-        log = spread.log
-        arrays["noise_log"] = np.column_stack([log.obs[: log.count], log.follows[: log.count]])
+    if spread.obs is not None:
+        arrays["noise_log"] = np.column_stack([spread.obs[: spread.count], spread.follows[: spread.count]])
     return {"scale_count": spread.count}, arrays
 
 
@@ -218,12 +224,11 @@ def load_scale_state(
         raise ValueError(f"array scale_spread has shape {rows.shape}; expected (2, {n})")
     spread.count = min(int(meta.get("scale_count", 0)), spread.limit)
     spread.mean[:], spread.m2[:] = rows
-    if spread.log is not None:
-        log, kept = spread.log, arrays.get("noise_log", np.zeros((0, n + 1)))
-        if kept.ndim != 2 or kept.shape[1] != n + 1 or len(kept) > len(log.obs):
-            raise ValueError(f"array noise_log has shape {kept.shape}; expected (at most {len(log.obs)}, {n + 1})")
-        log.count = len(kept)
-        log.obs[: log.count], log.follows[: log.count] = kept[:, :n], kept[:, n] > 0
+    if spread.obs is not None:
+        kept = arrays.get("noise_log", np.zeros((0, n + 1)))
+        if kept.shape != (spread.count, n + 1):
+            raise ValueError(f"array noise_log has shape {kept.shape}; expected ({spread.count}, {n + 1})")
+        spread.obs[: spread.count], spread.follows[: spread.count] = kept[:, :n], kept[:, n] > 0
     scale[:] = saved
 
 
@@ -407,9 +412,9 @@ class ScaledMetric(BaseAgent):
         changed = bool(self._estimated.any()) and refresh_scale(
             self._scale, inv_scale, self._estimated & ~noise, spread, self._factor
         )
-        if spread.log is not None and not self._noise_tested and spread.full:
+        if spread.obs is not None and not self._noise_tested and spread.full:
             self._noise_tested = True
-            found = spread.log.noise()
+            found = spread.noise()
             if found.any():
                 self._scale[found], inv_scale[found] = np.inf, 0.0
                 changed = True
