@@ -389,7 +389,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     def _greedy_actions(self, obs: np.ndarray) -> np.ndarray:
         if self.n_cells == 0:
             return np.zeros(len(obs), dtype=np.int64)
-        return self._model.a.Q[self.cells(obs)].argmax(axis=1).astype(np.int64)
+        return self._greedy_q()[self.cells(obs)].argmax(axis=1).astype(np.int64)
 
     # -- saving ---------------------------------------------------------------------------------
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

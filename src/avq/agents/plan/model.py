@@ -53,7 +53,9 @@ from avq._numba import Compiled, borrowed
 from avq.agents._params import ParamIndex, pack_params
 from avq.agents.plan.queue import HEAP_N, pop, push
 
-__all__ = ["CONT", "Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "borrowed_model", "clear", "known"]
+__all__ = [
+    "CONT", "Model", "ModelArrays", "ModelParam", "PLANNING_PARAMS", "backup_into", "borrowed_model", "clear", "known"
+]  # fmt: skip
 
 #: The options of every agent that learns this model and plans over it (``tabular-ps``, ``avq-plan``).
 PLANNING_PARAMS = ("v_opt", "v_min", "known_after", "n_backups", "tol")
@@ -301,24 +303,22 @@ def clear(m: ModelArrays) -> None:
 @njit(cache=True, inline="always")
 def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
-    cnt, cint, rsum, head, Q, V, e_to, e_next, e_disc, C, MP = (
-        m.cnt,
-        m.cint,
-        m.rsum,
-        m.head,
-        m.Q,
-        m.V,
-        m.e_to,
-        m.e_next,
-        m.e_disc,
-        m.C,
-        m.MP,
-    )  # (taken once: see ModelArrays)
+    m.C[BACKUPS] += 1
+    return backup_into(m, s, m.Q, m.V, m.MP[ModelParam.V_OPT])
+
+
+@njit(cache=True)  # (not inlined: inlined, tabular-ps's fused loop lost writes; see ModelArrays)
+def backup_into(m: ModelArrays, s: int, Q, V, v_untried: float) -> float:
+    """:func:`backup` into the values ``Q``, ``V`` (the model's, or a plan of its own), a pair not yet known
+    worth ``v_untried`` (not counted in ``backups``); return ``|change of V[s]|``."""
+    cnt, cint, rsum, head, e_to, e_next, e_disc, C, MP = (
+        m.cnt, m.cint, m.rsum, m.head, m.e_to, m.e_next, m.e_disc, m.C, m.MP
+    )  # (taken once: see ModelArrays)  # fmt: skip
     best = -np.inf
     for a in range(Q.shape[1]):
         n = cnt[s, a]
         if n - cint[s, a] < C[KNOWN]:
-            q = MP[ModelParam.V_OPT]
+            q = v_untried
         else:
             total = rsum[s, a]
             stays = 0.0
@@ -337,7 +337,6 @@ def backup(m: ModelArrays, s: int) -> float:
             best = q
     change = abs(best - V[s])
     V[s] = best
-    C[BACKUPS] += 1
     return change
 
 

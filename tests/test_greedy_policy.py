@@ -1,0 +1,98 @@
+"""The greedy policy of the agents that plan over a learned model (agents/plan/exploit.py): the model's plan
+with every pair not yet known worth ``v_min`` instead of ``v_opt``; learning is unchanged."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import avq
+from avq.agents.plan import tabular
+from avq.agents.plan.exploit import plan_without_optimism
+from avq.agents.plan.model import BACKUPS, Model
+
+
+def model(m=2, v_opt=10.0, v_min=-100.0, known=1, tol=1e-9, states=3):
+    mdl = Model(m, v_opt, v_min, known, tol)
+    for _ in range(states):
+        mdl.add_state()
+    return mdl
+
+
+def observe(mdl, s, a, r, s2):
+    mdl.reserve(edges=1)
+    return tabular.observe(mdl.a, s, a, r, 1.0, s2, 1000)
+
+
+def greedy(mdl, max_sweeps=1000):
+    q, v = np.empty_like(mdl.a.Q), np.empty_like(mdl.a.V)
+    sweeps = plan_without_optimism(mdl.a, q, v, max_sweeps)
+    return q[: mdl.n_states], v[: mdl.n_states], sweeps
+
+
+def test_a_decision_towards_untried_ones_is_worth_what_was_seen_not_what_is_hoped():
+    mdl = model()
+    # (0, 0) -> state 1 (return -1), whose decisions are untried; (0, 1) -> the end with return 5.
+    observe(mdl, 0, 0, -1.0, 1)
+    observe(mdl, 0, 1, 5.0, -1)
+    # Planned with optimism: Q(0, 0) = -1 + v_opt = 9 beats 5, so the exploring agent goes to state 1.
+    assert mdl.a.Q[0].tolist() == [9.0, 5.0]
+    q, v, _ = greedy(mdl)
+    # Without it: state 1 is worth v_min = -100, Q(0, 0) = -1 - 100 floored at -100; the greedy choice is 1.
+    assert q[0].tolist() == [-100.0, 5.0] and v[1] == -100.0 and v[0] == 5.0
+    assert mdl.a.Q[0].tolist() == [9.0, 5.0]  # (the model's own values are left as they were)
+
+
+def test_the_greedy_values_are_the_planned_ones_where_every_pair_is_known():
+    mdl = model(states=3)
+    # A chain 0 -> 1 -> 2 -> end under action 0 (return -1 each), action 1 from each to the end with -20.
+    for s in range(3):
+        observe(mdl, s, 1, -20.0, -1)
+        observe(mdl, s, 0, -1.0, s + 1 if s < 2 else -1)
+    mdl.sweep(1000)
+    q, v, sweeps = greedy(mdl)
+    assert np.array_equal(q, mdl.a.Q[:3]) and v.tolist() == [-3.0, -2.0, -1.0] and sweeps == 1
+    assert mdl.a.C[BACKUPS] == mdl.backups  # (its sweeps are not the model's backups)
+
+
+def test_a_loop_known_only_by_hope_falls_to_the_floor_within_the_sweeps():
+    # 0 -> 1 -> 0 under action 0 (return -1 each), action 1 of both untried: with optimism each is worth
+    # v_opt; without, the loop is worth v_min = -100, reached after about 50 sweeps of two units each.
+    mdl = model(states=2)
+    observe(mdl, 0, 0, -1.0, 1)
+    observe(mdl, 1, 0, -1.0, 0)
+    assert mdl.a.V[:2].tolist() == [10.0, 10.0]
+    q, v, sweeps = greedy(mdl)
+    assert v.tolist() == [-100.0, -100.0] and 40 < sweeps < 60
+    _, v_cut, cut = greedy(mdl, max_sweeps=5)
+    assert cut == 5 and v_cut[0] > -100.0  # (a value still moving when the sweeps run out is left there)
+
+
+@pytest.mark.parametrize("name", ["avq", "tabular-ps"])
+def test_predict_follows_the_plan_without_optimism_and_plans_again_after_learning(name):
+    env = gym.make("avq/SlabMaze-v0", dims=2, layout_seed=2) if name == "avq" else gym.make("avq/GridMaze-v0")
+    steps = 1500 if name == "avq" else 300
+    agent = avq.make_agent(name, env, seed=3).learn(total_timesteps=steps)
+    if name == "avq":
+        obs = np.random.default_rng(0).random((400, 2)).astype(np.float32)
+        rows = agent.cells(obs)
+    else:
+        obs = agent.states_.astype(np.float32)  # (one row per observation seen, in the rows' order)
+        rows = np.arange(len(obs))
+    a = agent.model_.a
+    q, v = np.empty_like(a.Q), np.empty_like(a.V)
+    plan_without_optimism(a, q, v, 1000)
+    actions, _ = agent.predict(obs, deterministic=True)
+    assert np.array_equal(actions, q[rows].argmax(axis=1))
+    # Somewhere the exploring agent's values would have chosen otherwise (towards what it has not tried).
+    assert np.any(actions != agent.q_[rows].argmax(axis=1))
+    # After more learning the greedy values are planned again from the changed model.
+    agent.learn(total_timesteps=steps)
+    a = agent.model_.a
+    q, v = np.empty_like(a.Q), np.empty_like(a.V)
+    plan_without_optimism(a, q, v, 1000)
+    if name == "avq":
+        rows = agent.cells(obs)
+    else:
+        obs = agent.states_.astype(np.float32)
+        rows = np.arange(len(obs))
+    assert np.array_equal(agent.predict(obs, deterministic=True)[0], q[rows].argmax(axis=1))
