@@ -430,7 +430,7 @@ def plot(out: Path) -> None:
                     ax.fill_between(at, [min(v) for v in vals], [max(v) for v in vals], color=f"C{i}", alpha=0.15)
             ax_r.axhline(rows[[r["task"] for r in rows].index(task)]["threshold"], color="k", ls=":", lw=1)
             ax_r.set(xlabel="irrelevant dimensions k", ylabel=f"{task}: final return (threshold dotted)")
-            ax_c.set(xlabel="irrelevant dimensions k", ylabel="cells or tiles at the end", yscale="log")
+            ax_c.set(xlabel="irrelevant dimensions k", ylabel="cells, tiles or weights (dqn) at the end", yscale="log")
             for ax in (ax_r, ax_c):
                 ax.set_xticks(ks)
                 ax.grid(alpha=0.3)

@@ -58,6 +58,8 @@ VARIANTS = {
     "merge+radius, no outcome split": {"rho": 25.0, "known_radius": 0.3, "outcome_split": False},
     "merge+radius, no optimism": {"rho": 25.0, "known_radius": 0.3, "v_opt": -10_000.0, "epsilon": 0.1},
     "merge+radius, known after 3": {"rho": 25.0, "known_radius": 0.3, "known_after": 3},
+    # More merging on the refined mazes (ρ is a mean square of returns, which grow k times longer).
+    **{f"merge+radius, rho {r}": {"rho": float(r), "known_radius": 0.3} for r in (200, 800, 1600)},
 }
 #: ``--new``: mazes never used to choose a setting. Two made by hand (47 and 89 squares), and generated
 #: layouts of the tuning mazes' sides with other seeds (the tuning mazes are ``seed=1000 + side``).
@@ -164,7 +166,7 @@ def new_study(args: argparse.Namespace, seeds: list[int]) -> None:
         for m in mazes
         for s in seeds
     ]
-    rows = run_and_write(jobs, args, "new", NEW_FIELDS)
+    rows = run_and_write(jobs, args, "new", NEW_FIELDS, keep_others="agent")  # (an agent can be run again alone)
     print("| maze (squares) | " + " | ".join(f"`{a}`" for a in args.agents) + " |")
     print("|---" * (len(args.agents) + 1) + "|")
     for m in mazes:
@@ -193,11 +195,17 @@ def write(path: Path, fields: tuple, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
-def run_and_write(jobs: list, args: argparse.Namespace, study: str, fields: tuple) -> list[dict]:
-    """Run ``jobs`` on ``args.jobs`` processes and write their rows to ``merging_STUDY[_slipP]_seedsS.csv``."""
+def run_and_write(jobs: list, args: argparse.Namespace, study: str, fields: tuple, keep_others: str = "") -> list[dict]:
+    """Run ``jobs`` on ``args.jobs`` processes and write their rows to ``merging_STUDY[_slipP]_seedsS.csv``; with
+    ``keep_others`` (a field), the file's rows whose value of it none of the new rows has are kept."""
     rows = Parallel(n_jobs=args.jobs)(jobs)
     slip = f"_slip{args.slip:g}" if args.slip else ""
-    write(Path(args.out) / f"merging_{study}{slip}_seeds{args.seeds}.csv", fields, rows)
+    path = Path(args.out) / f"merging_{study}{slip}_seeds{args.seeds}.csv"
+    kept = []
+    if keep_others and path.exists():
+        ran = {str(r[keep_others]) for r in rows}
+        kept = [r for r in csv.DictReader(path.open()) if r[keep_others] not in ran]
+    write(path, fields, kept + rows)
     return rows
 
 
