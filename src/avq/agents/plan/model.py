@@ -304,13 +304,14 @@ def clear(m: ModelArrays) -> None:
 def backup(m: ModelArrays, s: int) -> float:
     """Recompute ``Q[s]`` and ``V[s]`` from the model; return ``|change of V[s]|``."""
     m.C[BACKUPS] += 1
-    return backup_into(m, s, m.Q, m.V, m.MP[ModelParam.V_OPT])
+    return backup_into(m, s, m.Q, m.V, m.MP[ModelParam.V_OPT], m.MP[ModelParam.V_MAX])
 
 
 @njit(cache=True)  # (not inlined: inlined, tabular-ps's fused loop lost writes; see ModelArrays)
-def backup_into(m: ModelArrays, s: int, Q, V, v_untried: float) -> float:
+def backup_into(m: ModelArrays, s: int, Q, V, v_untried: float, v_max: float) -> float:
     """:func:`backup` into the values ``Q``, ``V`` (the model's, or a plan of its own), a pair not yet known
-    worth ``v_untried`` (not counted in ``backups``); return ``|change of V[s]|``."""
+    worth ``v_untried``, no known value above ``v_max`` (not counted in ``backups``); return
+    ``|change of V[s]|``."""
     cnt, cint, rsum, head, e_to, e_next, e_disc, C, MP = (
         m.cnt, m.cint, m.rsum, m.head, m.e_to, m.e_next, m.e_disc, m.C, m.MP
     )  # (taken once: see ModelArrays)  # fmt: skip
@@ -331,7 +332,7 @@ def backup_into(m: ModelArrays, s: int, Q, V, v_untried: float) -> float:
                     stays += e_disc[e]
                 e = e_next[e]
             q = total / (n - stays)
-            q = min(max(q, MP[ModelParam.V_MIN]), MP[ModelParam.V_MAX])
+            q = min(max(q, MP[ModelParam.V_MIN]), v_max)
         Q[s, a] = q
         if q > best:
             best = q

@@ -21,7 +21,7 @@ from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents.plan import model as _model
-from avq.agents.plan.exploit import MAX_SWEEPS, plan_without_optimism
+from avq.agents.plan.exploit import greedy_actions
 from avq.agents.plan.fused import PSTable, run_ps_grid_maze
 from avq.agents.plan.model import Model
 from avq.agents.plan.tabular import ps_step
@@ -32,7 +32,7 @@ __all__ = ["PrioritizedSweeping", "ModelPlanner"]
 class ModelPlanner(BaseAgent):
     """What the agents that plan by prioritized sweeping over a learned :class:`~avq.agents.plan.model.Model`
     (``_model``, whose states are the agent's ``n_cells`` states or cells) show of it: ``q_``, the planned
-    values, the model itself and the planner's counts; and the values of their greedy policy, the model's plan
+    values, the model itself and the planner's counts; and their greedy policy, chosen on the model's plan
     without optimism (:func:`~avq.agents.plan.exploit.plan_without_optimism`), planned again only when the model
     changed since (the key: its arrays, backups, states and edges)."""
 
@@ -40,14 +40,16 @@ class ModelPlanner(BaseAgent):
     _greedy: tuple[tuple[int, ...], np.ndarray] | None = None
 
     def _greedy_q(self) -> np.ndarray:
-        """What ``predict(deterministic=True)`` maximizes: a row per state, the model planned with every pair not
-        yet known worth ``v_min`` (docs: explanation/beyond-the-paper.md, The greedy policy)."""
+        """What ``predict(deterministic=True)`` maximizes, a row per state: 1 for the greedy action
+        (:func:`~avq.agents.plan.exploit.greedy_actions`), 0 for the others (docs: explanation/beyond-the-paper.md,
+        The greedy policy)."""
         a = self._model.a
         key = (id(a), int(a.C[_model.BACKUPS]), int(a.C[_model.N_STATES]), int(a.C[_model.N_EDGES]))
         if self._greedy is None or self._greedy[0] != key:
-            q, v = np.empty_like(a.Q), np.empty_like(a.V)
-            plan_without_optimism(a, q, v, MAX_SWEEPS)
-            self._greedy = (key, q)
+            choice = np.zeros_like(a.Q)
+            best = greedy_actions(a)
+            choice[np.arange(len(best)), best] = 1.0
+            self._greedy = (key, choice)
         return self._greedy[1]
 
     @property
