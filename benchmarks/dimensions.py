@@ -16,7 +16,8 @@ an exponential:
   (``max_cells`` 1,000,000), so that their number is measured; ``tiles`` hashes into 2^18 weights instead of
   4,096 (8 tilings of 8^d tiles); ``grid-ps`` has one bin per move on every axis, ``ceil(1 / move)^d`` bins,
   and is skipped (a note printed) where that is more than 2,000,000 (d = 8). SlabMaze has no entry of its own
-  in the agents' defaults: ``avq`` is the planning agent with its general ones.
+  in the agents' defaults: ``avq`` is the planning agent with its general ones; ``avq-axis`` is ``avq`` with
+  ``collision_split`` instead of the paper's growth on collisions and ``axis_share`` 0.8.
 * ``--irrelevant``: MountainCar-v0 and CartPole-v1 with k = 0, 2, 4, 8 noise dimensions appended
   (``avq.envs.IrrelevantDims``), 300 episodes. Every k gets the agent's defaults for the task itself (which
   ``make_agent`` would replace by the general ones on a wrapped task), per-dimension settings extended over
@@ -59,6 +60,9 @@ MOVE, TARGET, EVAL_STARTS, EVAL_SEED = 0.1, 0.9, 50, 1
 MAX_BINS = 2_000_000
 UNCAPPED = {"max_cells": 1_000_000}
 DIMS_AGENTS = {"avq": UNCAPPED, "avq-sarsa": UNCAPPED, "tiles": {"iht_size": 1 << 18}, "grid-ps": {}}
+#: ``avq`` with the cuts across one axis instead of the paper's growth on collisions (not its defaults: on classic
+#: control the outcome split across one axis costs; docs/results/dimensions.md).
+DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_split": True, "axis_share": 0.8}
 IRRELEVANT_AGENTS = ("avq", "avq-sarsa", "tiles")
 TASKS = ("MountainCar-v0", "CartPole-v1")
 #: CartPole's velocities are unbounded; tiles cuts a box (benchmarks/compare.py's).
@@ -206,7 +210,7 @@ def dims_run(name: str, d: int, seed: int, budget: int) -> dict:
         overrides = dict(DIMS_AGENTS[name])
         if name == "grid-ps":
             overrides.update(bins=math.ceil(1.0 / MOVE - 1e-9), max_states=grid_bins(d))
-        agent = avq.make_agent(name, env, seed=seed, **overrides)
+        agent = avq.make_agent(name.removesuffix("-axis"), env, seed=seed, **overrides)
     starts = maze.start_positions(EVAL_STARTS, seed=EVAL_SEED)
     reached, success, learning = learn_until(agent, lambda a: greedy_success(a, maze, starts), budget, TARGET)
     steps = agent.num_timesteps
@@ -274,9 +278,11 @@ def read_csv(path: Path) -> list[dict]:
     return rows
 
 
-def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict], names: list[str]) -> list[dict]:
-    """Write ``rows`` with the rows of the agents not in ``names`` kept from the file; return them all."""
-    old = [r for r in read_csv(path) if r["agent"] not in names]
+def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict], match: tuple[str, ...]) -> list[dict]:
+    """Write ``rows`` with the file's rows kept where no new row has the same ``match`` fields (an agent at a d, say:
+    so that agents and dimensions can be added one at a time); return them all."""
+    ran = {tuple(str(r[k]) for k in match) for r in rows}
+    old = [r for r in read_csv(path) if tuple(r[k] for k in match) not in ran]
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)
@@ -490,7 +496,7 @@ def main() -> None:
                 if n != "grid-ps" or grid_bins(d) <= MAX_BINS
             ]
             print(f"{len(jobs)} runs: SlabMaze d {ds}, seeds {seeds}, budget {budget:,} env steps")
-            rows = write_csv(out / "data" / "dimensions.csv", DIMS_FIELDS, Parallel(args.jobs)(jobs), names)
+            rows = write_csv(out / "data" / "dimensions.csv", DIMS_FIELDS, Parallel(args.jobs)(jobs), ("agent", "d"))
             dims_table(rows)
         else:
             ks = [int(v) for v in args.k.split(",")] if args.k else QUICK_KS if args.quick else KS
@@ -505,7 +511,7 @@ def main() -> None:
             print(f"{len(jobs)} runs: {', '.join(TASKS)}, k {ks} ({args.kind}), seeds {seeds}, {episodes} episodes")
             new = Parallel(args.jobs)(jobs)
             csv_name = "dimensions_irrelevant.csv" if args.kind == "noise" else f"dimensions_irrelevant_{args.kind}.csv"
-            rows = write_csv(out / "data" / csv_name, IRR_FIELDS, new, names)
+            rows = write_csv(out / "data" / csv_name, IRR_FIELDS, new, ("task", "agent", "k"))
             irrelevant_table(rows)
         print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)\n")
     if args.plot:

@@ -31,20 +31,14 @@ from avq.agents.plan.state import (
     auto_v_opt,
     best_return_to_go,
     horizon,
+    load_state_arrays,
+    no_neighbours,
     value_ceiling,
 )
 from avq.agents.plan.sweeping import ModelPlanner
 from avq.quantizer import Codebook
 
 __all__ = ["PlanningAVQ"]
-
-#: Arrays of a model file that grew with merging (avq 0.2), and their last dimension before it.
-_GREW = {"S": 16, "mem_i": 3}
-
-
-def _no_neighbours(cap: int, k: int) -> np.ndarray:
-    """The merge pass's neighbour table for ``cap`` cells, not yet found (:class:`PlanArrays`' ``near``)."""
-    return np.full((cap + 1, k), -1, dtype=np.int64)
 
 
 class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
@@ -74,10 +68,17 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
             vector, append the observation (docs: explanation/paper.md, Growing).
+        collision_split: Growth on collisions for more than two dimensions, instead of ``collision_growth``
+            (whose appended observations tile walls of ``n - 1`` dimensions; give ``collision_growth=False``): a
+            decision that collides at ``x`` in a cell from which it was also seen to leave without a collision
+            cuts the cell across one axis, the one on which ``x`` and the mean start of the decision's most
+            frequent other successor differ most (scaled); the cell's vector moves along that axis alone to each.
         outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by
             more than ``split_threshold`` beyond what the distance between their starts explains
             (src/avq/agents/plan/kernels.py).
         split_threshold: That excess, > 0.
+        axis_share: The outcome split cuts across one axis alone (as ``collision_split``) where it carries at least
+            this share, in [0, 1], of the squared scaled gap between the groups' mean starts; None: their bisector.
         cycle_split: When two decisions lead from a cell to another and straight back, give the square
             of the return a cell of its own (as ``AVQSarsa``'s ``cycle_split``).
         value_slope: The value's slope ``L`` of that rule, per unit of scaled distance; None: estimated
@@ -153,9 +154,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         tol: float = 0.01,
         d_min: float = 0.05,
         collision_growth: bool = True,
+        collision_split: bool = False,
         outcome_split: bool = True,
         cycle_split: bool = False,
         split_threshold: float = 10.0,
+        axis_share: float | None = None,
         value_slope: float | None = None,
         memory: int = 100_000,
         scale: float | Sequence[float] | str | None = "auto",
@@ -175,11 +178,18 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol, auto_v_opt=True)
         self.d_min = check_range("d_min", d_min, 0.0, np.inf, high_open=True)
         self.collision_growth = check_bool("collision_growth", collision_growth)
+        self.collision_split = check_bool("collision_split", collision_split)
+        if self.collision_growth and self.collision_split:
+            raise ValueError(
+                "collision_growth=True and collision_split=True are two answers to a collision; give "
+                "collision_growth=False to cut cells across one axis at collisions instead of appending them"
+            )
         self.outcome_split = check_bool("outcome_split", outcome_split)
         self.cycle_split = check_bool("cycle_split", cycle_split)
         self.split_threshold = check_range(
             "split_threshold", split_threshold, 0.0, np.inf, low_open=True, high_open=True
         )
+        self.axis_share = check_optional(check_range, "axis_share", axis_share, 0.0, 1.0)
         self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
@@ -219,6 +229,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             split_after=0 if self.split_after is None else self.split_after,
             rho=-1.0 if self.rho is None else self.rho,
             known_radius=-1.0 if self.known_radius is None else self.known_radius,
+            axis_share=-1.0 if self.axis_share is None else self.axis_share,
         )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(
@@ -233,7 +244,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             mem_i=np.zeros((self.memory, 4), dtype=np.int64),
             mem_f=np.zeros((self.memory, 2)),
             e_xs=np.zeros((0, n)),
-            near=_no_neighbours(cap, self.merge_neighbours),
+            near=no_neighbours(cap, self.merge_neighbours),
         )
         self._model = _model.Model(
             self.n_actions, 0.0 if isinstance(self.v_opt, str) else self.v_opt, self.v_min, self.known_after, self.tol
@@ -257,7 +268,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         if size + core.APPENDS_PER_STEP > cap:
             new = np.zeros((max(2 * cap, size + core.APPENDS_PER_STEP), ag.V.shape[1]))
             new[:cap] = ag.V
-            ag = self._ag = ag._replace(V=new, near=_no_neighbours(len(new), self.merge_neighbours))
+            ag = self._ag = ag._replace(V=new, near=no_neighbours(len(new), self.merge_neighbours))
         self._model.reserve(states=core.APPENDS_PER_STEP, edges=core.APPENDS_PER_STEP * (int(ag.S[MEM_N]) + 1))
         edges = self._model.a.e_to.shape[0]
         if ag.e_xs.shape[0] < edges:
@@ -419,15 +430,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
 
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         super()._load_state_dict(meta, arrays)
-        for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f"):
-            mine, theirs = getattr(self._ag, name), arrays[name]
-            if name in _GREW and theirs.shape[:-1] == mine.shape[:-1] and theirs.shape[-1] == _GREW[name]:
-                mine[:] = 0  # (a file from before merging: the entries added since are 0)
-                mine[..., : theirs.shape[-1]] = theirs
-                continue
-            if theirs.shape != mine.shape:
-                raise ValueError(f"array {name} has shape {theirs.shape}; expected {mine.shape}")
-            mine[:] = theirs
+        load_state_arrays(self._ag, arrays)
         codebook, size, n = arrays["codebook"], int(self._ag.S[SIZE]), self._ag.xs.shape[0]
         if codebook.shape != (size, n):
             raise ValueError(f"array codebook has shape {codebook.shape}; expected ({size}, {n})")

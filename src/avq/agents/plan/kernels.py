@@ -122,11 +122,13 @@ def append_cell(ag: PlanArrays, m: ModelArrays, x) -> int:
 
 
 @njit(cache=True)
-def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2) -> int:
+def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, axis_share: float) -> int:
     """Cut cell ``i`` in two around two starts of decision ``a`` whose outcomes disagree: the transitions of
     each successor of ``(i, a)`` go with the nearer of ``seed_1`` and ``seed_2`` to their mean start; the
     cell's vector moves to the mean start of the first group and the mean start of the second becomes a
-    new cell. Returns the new
+    new cell. Where one axis carries at least ``axis_share`` of the squared scaled distance between the two
+    means (0: always; below 0: never), the cut is across that axis alone: the two vectors are the cell's own,
+    moved along that axis to the two means' coordinates on it. Returns the new
     cell, or -1 (nothing changed) when a group is empty or a mean lies within ``d_min`` of the other or of
     another vector (no vector within ``d_min`` of another; docs: explanation/paper.md, Growing)."""
     V, inv_scale, e_xs, d_min = ag.V, ag.inv_scale, ag.e_xs, ag.P[PlanParam.D_MIN]
@@ -163,6 +165,17 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2) -
         g2[d] /= n2
         z = (g1[d] - g2[d]) * inv_scale[d]
         gap += z * z
+    k = 0  # (the axis that carries the most of the gap)
+    for d in range(n):
+        if abs(g1[d] - g2[d]) * inv_scale[d] > abs(g1[k] - g2[k]) * inv_scale[k]:
+            k = d
+    along = ((g1[k] - g2[k]) * inv_scale[k]) ** 2
+    if axis_share >= 0.0 and along >= axis_share * gap:
+        gap = along
+        for d in range(n):
+            if d != k:
+                g1[d] = V[i, d]
+                g2[d] = V[i, d]
     if not np.sqrt(gap) > d_min:
         return -1
     for k in range(ag.S[SIZE]):  # no vector within d_min of another (docs: explanation/paper.md, Growing)
@@ -174,6 +187,23 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2) -
     c = _new_cell(ag, m, g2)
     relocate(ag, m, i, c)
     return c
+
+
+@njit(cache=True)
+def split_at_collision(ag: PlanArrays, m: ModelArrays, i: int, a: int, x) -> int:
+    """``collision_split``: decision ``a`` collided at ``x`` in cell ``i`` (its transition recorded), where it
+    was also seen to leave the cell without a collision. Cut ``i`` across one axis between ``x`` and the mean
+    start of the decision's most frequent successor other than ``i`` (:func:`split_cell` with ``axis_share``
+    0). Returns the new cell, or -1 (nothing changed: no such successor, or :func:`split_cell` refused)."""
+    best, most = -1, 0
+    e = m.head[i, a]
+    while e >= 0:
+        if m.e_to[e] != i and m.e_n[e] > most:
+            best, most = e, m.e_n[e]
+        e = m.e_next[e]
+    if best < 0:
+        return -1
+    return split_cell(ag, m, i, a, x, ag.e_xs[best] / most, 0.0)
 
 
 @njit(cache=True, inline="always")
@@ -363,6 +393,14 @@ def end_transition(
             start = start_after_growth(ag, t, i, grown_from)
             ag.mem_i[t, 1] = start
         record_with_start(m, ag.e_xs, ag.mem_x, t, start, a, F[RET], F[DISC], successor(start, jm, crossing), 1)
+        if collision and IP[PlanIntParam.COLLISION_SPLIT]:
+            if S[SIZE] < max_cells:
+                if split_at_collision(ag, m, i, a, x) >= 0:
+                    S[SPLITS] += 1
+                    j, _ = nearest_index(V, S[SIZE], x, inv_scale)  # (the vectors moved)
+                    excess = -np.inf  # (the cell's transitions were cut already)
+            else:
+                S[REFUSED] += 1
         if outcome_disagrees(excess, P[PlanParam.SPLIT_THRESHOLD]):
             bar = -np.inf  # the value of the next best decision in i
             for b in range(Q.shape[1]):
@@ -370,7 +408,7 @@ def end_transition(
                     bar = Q[i, b]
             if split_matters(other[n], bar):
                 if S[SIZE] < max_cells:
-                    if split_cell(ag, m, i, a, xs, other[:n]) >= 0:
+                    if split_cell(ag, m, i, a, xs, other[:n], P[PlanParam.AXIS_SHARE]) >= 0:
                         S[SPLITS] += 1
                         j, _ = nearest_index(V, S[SIZE], x, inv_scale)  # (the vectors moved)
                 else:

@@ -32,6 +32,8 @@ __all__ = [
     "best_return_to_go",
     "borrowed_plan",
     "horizon",
+    "load_state_arrays",
+    "no_neighbours",
     "value_ceiling",
 ]
 
@@ -46,6 +48,7 @@ class PlanParam(ParamIndex):
     VALUE_SLOPE = auto()  # outcome_split's slope; -1: estimated (value_slope=None)
     RHO = auto()  # merging: the largest mean square difference of two cells' profiles; -1: off (rho=None)
     KNOWN_RADIUS = auto()  # decisions: optimism for a decision never tried within it; -1: off (known_radius=None)
+    AXIS_SHARE = auto()  # the outcome split's cut across one axis; -1: never (axis_share=None)
 
 
 class PlanIntParam(ParamIndex):
@@ -60,6 +63,7 @@ class PlanIntParam(ParamIndex):
     SPLIT_AFTER = auto()  # 0: off (split_after=None)
     MERGE_NEIGHBOURS = auto()  # merging: each cell's nearest cells among which its partner is sought
     MERGE_SAME_ACTION = auto()  # merging: only cells whose greedy actions agree
+    COLLISION_SPLIT = auto()
 
 
 # S: int state
@@ -107,6 +111,30 @@ class PlanArrays(NamedTuple):
     #: ``(cap + 1, merge_neighbours)`` the merge pass's neighbours: ``near[1 + i]`` lists cell ``i``'s nearest
     #: cells, nearest first, found for the codebook of ``S[GEOM] == near[0, 0]`` (-1: not yet). Derived, not saved.
     near: np.ndarray
+
+
+def no_neighbours(cap: int, k: int) -> np.ndarray:
+    """The merge pass's neighbour table for ``cap`` cells, not yet found (:class:`PlanArrays`' ``near``)."""
+    return np.full((cap + 1, k), -1, dtype=np.int64)
+
+
+#: Arrays of a model file that grew with merging (avq 0.2), and their last dimension before it.
+_GREW = {"S": 16, "mem_i": 3}
+
+
+def load_state_arrays(ag: PlanArrays, arrays: dict[str, np.ndarray]) -> None:
+    """Copy a saved agent's state and memory (``S``, ``F``, ``xs``, ``mem_x``, ``mem_i``, ``mem_f``) into ``ag``'s
+    arrays of the same shapes; a file from before merging, whose ``S`` and ``mem_i`` were narrower, gets 0 in the
+    entries added since. Raises ValueError for an array of another shape."""
+    for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f"):
+        mine, theirs = getattr(ag, name), arrays[name]
+        if name in _GREW and theirs.shape[:-1] == mine.shape[:-1] and theirs.shape[-1] == _GREW[name]:
+            mine[:] = 0
+            mine[..., : theirs.shape[-1]] = theirs
+            continue
+        if theirs.shape != mine.shape:
+            raise ValueError(f"array {name} has shape {theirs.shape}; expected {mine.shape}")
+        mine[:] = theirs
 
 
 #: ``borrowed_plan(ag)``: ``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed_record`), for a
