@@ -14,6 +14,10 @@ Writes ``OUT/optimism_seedsS.csv`` (``--out``, default ``docs/data``; ``S`` the 
     python benchmarks/optimism.py --seeds 10-19 --tasks LunarLander-v3 --v-opt auto 0
     python benchmarks/optimism.py --seeds 0-14 --tasks MountainCar-shaped --v-opt auto --baselines
     python benchmarks/optimism.py --seeds 10-19 --tasks CartPole-v1 MountainCar-v0 Acrobot-v1 --v-opt auto
+    python benchmarks/optimism.py --seeds 0-4 --tasks CartPole-v1 MountainCar-v0 Acrobot-v1 --v-opt auto --axis-share 0.8
+
+``--axis-share`` gives ``avq`` that ``axis_share`` (the outcome split across one axis; written to
+``OUT/optimism_seedsS_axisX.csv``).
 """
 
 from __future__ import annotations
@@ -46,6 +50,8 @@ DEFAULT_TASKS = ("LunarLander-v3", "CartPole-v1", "MountainCar-shaped")
 V_OPTS = ("auto", 200.0, 100.0, 30.0, 0.0, -50.0)
 TAIL = 100
 FIELDS = ("task", "agent", "v_opt", "seed", "episodes", "final_return", "cells", "v_opt_end", "env_steps", "wall_s")
+#: With ``--axis-share``, a column more.
+AXIS_FIELDS = (*FIELDS, "axis_share")
 
 
 class ShapedMountainCar(gym.Wrapper):
@@ -75,8 +81,8 @@ class ShapedMountainCar(gym.Wrapper):
         return obs, shaped, terminated, truncated, info
 
 
-def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> dict:
-    """One run: ``avq`` (the general entry) with ``v_opt``, ``tiles`` or ``random``."""
+def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int, axis_share: float | None = None) -> dict:
+    """One run: ``avq`` (the general entry) with ``v_opt`` (and ``axis_share`` where given), ``tiles`` or ``random``."""
     env = ShapedMountainCar() if task == "MountainCar-shaped" else gym.make(task)
     t = time.perf_counter()
     if agent == "random":
@@ -92,7 +98,9 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> 
         cells, v_end = 0, None
     else:
         if agent == "avq":
-            model = avq.PlanningAVQ(env, v_opt=v_opt, seed=seed)
+            model = avq.PlanningAVQ(
+                env, v_opt=v_opt, seed=seed, **({} if axis_share is None else {"axis_share": axis_share})
+            )
         else:  # (tiles cuts a box: CartPole's velocities are unbounded)
             model = avq.make_agent(
                 agent, env, seed=seed, **({"obs_bounds": CARTPOLE_BOUNDS} if "CartPole" in task else {})
@@ -101,7 +109,7 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> 
         returns, steps, cells = model.episode_history()["return"], model.num_timesteps, model.n_cells
         returns = env.returns if isinstance(env, ShapedMountainCar) else returns
         v_end = round(model.v_opt_, 1) if agent == "avq" else None
-    return dict(
+    row = dict(
         task=task,
         agent=agent,
         v_opt=v_opt if agent == "avq" else "",
@@ -113,6 +121,7 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int) -> 
         env_steps=steps,
         wall_s=round(time.perf_counter() - t, 1),
     )
+    return row if axis_share is None else row | {"axis_share": axis_share if agent == "avq" else ""}
 
 
 def main() -> None:
@@ -122,22 +131,24 @@ def main() -> None:
     ap.add_argument("--v-opt", nargs="+", default=[str(v) for v in V_OPTS], help='"auto" or numbers')
     ap.add_argument("--baselines", nargs="*", default=["tiles", "random"], choices=["tiles", "random"])
     ap.add_argument("--episodes", type=int, default=None, help="per run, instead of each task's own (a check)")
+    ap.add_argument("--axis-share", type=float, default=None, help="avq's axis_share (default: none)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs/data")
     args = ap.parse_args()
     v_opts = [v if v == "auto" else float(v) for v in args.v_opt]
     configs = [("avq", v) for v in v_opts] + [(b, "") for b in args.baselines]
     jobs = [
-        delayed(run)(task, agent, v, seed, args.episodes or TASKS[task])
+        delayed(run)(task, agent, v, seed, args.episodes or TASKS[task], args.axis_share)
         for task in args.tasks
         for agent, v in configs
         for seed in seeds_of(args.seeds)
     ]
     rows = Parallel(n_jobs=args.jobs)(jobs)
-    out = Path(args.out) / f"optimism_seeds{args.seeds}.csv"
+    axis = "" if args.axis_share is None else f"_axis{args.axis_share:g}"
+    out = Path(args.out) / f"optimism_seeds{args.seeds}{axis}.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     with out.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=FIELDS)
+        w = csv.DictWriter(f, fieldnames=FIELDS if args.axis_share is None else AXIS_FIELDS)
         w.writeheader()
         w.writerows(rows)
     print(f"| task | agent | v_opt | final return (last {TAIL}), median [range] | cells | v_opt at the end |")

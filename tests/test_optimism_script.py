@@ -48,3 +48,17 @@ def test_the_script_writes_a_row_per_configuration_and_seed(tmp_path):
         ("random", "", "0"), ("random", "", "1"),
     ]  # fmt: skip
     assert "| CartPole-v1 | avq | auto |" in out and "| CartPole-v1 | random |" in out
+
+
+def test_axis_share_goes_to_avq_and_names_the_file(tmp_path):
+    # Every outcome split of these 10 episodes cuts across one axis (share 0): other cells than without it.
+    row = optimism.run("CartPole-v1", "avq", "auto", 0, 10, axis_share=0.0)
+    plain = optimism.run("CartPole-v1", "avq", "auto", 0, 10)
+    assert row["axis_share"] == 0.0 and "axis_share" not in plain
+    assert (row["cells"], row["env_steps"]) != (plain["cells"], plain["env_steps"])
+    assert row | {"wall_s": 0} == optimism.run("CartPole-v1", "avq", "auto", 0, 10, axis_share=0.0) | {"wall_s": 0}
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "optimism.py"), "--tasks", "CartPole-v1", "--seeds", "0-0"]
+    cmd += ["--v-opt", "auto", "--baselines", "--episodes", "2", "--axis-share", "0.8", "--jobs", "1"]
+    subprocess.run(cmd + ["--out", str(tmp_path)], capture_output=True, text=True, check=True, cwd=ROOT)
+    rows = list(csv.DictReader((tmp_path / "optimism_seeds0-0_axis0.8.csv").open()))
+    assert [(r["agent"], r["axis_share"]) for r in rows] == [("avq", "0.8")]
