@@ -17,7 +17,7 @@ an exponential:
   4,096 (8 tilings of 8^d tiles); ``grid-ps`` has one bin per move on every axis, ``ceil(1 / move)^d`` bins,
   and is skipped (a note printed) where that is more than 2,000,000 (d = 8). SlabMaze has no entry of its own
   in the agents' defaults: ``avq`` is the planning agent with its general ones; ``avq-axis`` is ``avq`` with
-  ``collision_split`` instead of the paper's growth on collisions and ``axis_share`` 0.8.
+  ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8.
 * ``--irrelevant``: MountainCar-v0 and CartPole-v1 with k = 0, 2, 4, 8 noise dimensions appended
   (``avq.envs.IrrelevantDims``), 300 episodes. Every k gets the agent's defaults for the task itself (which
   ``make_agent`` would replace by the general ones on a wrapped task), per-dimension settings extended over
@@ -62,7 +62,7 @@ UNCAPPED = {"max_cells": 1_000_000}
 DIMS_AGENTS = {"avq": UNCAPPED, "avq-sarsa": UNCAPPED, "tiles": {"iht_size": 1 << 18}, "grid-ps": {}}
 #: ``avq`` with the cuts across one axis instead of the paper's growth on collisions (not its defaults: on classic
 #: control the outcome split across one axis costs; docs/results/dimensions.md).
-DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_split": True, "axis_share": 0.8}
+DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_cut": True, "axis_share": 0.8}
 IRRELEVANT_AGENTS = ("avq", "avq-sarsa", "tiles")
 TASKS = ("MountainCar-v0", "CartPole-v1")
 #: CartPole's velocities are unbounded; tiles cuts a box (benchmarks/compare.py's).

@@ -1,5 +1,5 @@
 """``avq-plan``'s cuts across one axis: the outcome split's where one axis carries ``axis_share`` of the gap, and
-``collision_split``, the growth on collisions that cuts a cell where a decision collides from part of it instead of
+``collision_cut``, the growth on collisions that cuts a cell where a decision collides from part of it instead of
 appending every collision's observation; each set up by hand with the numbers written out."""
 
 import gymnasium as gym
@@ -45,13 +45,13 @@ def test_below_the_share_the_cut_is_the_bisector_of_the_two_mean_starts(axis_sha
 def collided(*leaving):
     """Cell 0 at (2, 2), cell 1 at (20, 20); decision 0 left cell 0 for cell 1 from each start in ``leaving``, then
     collided at (3, 2.5) (it stayed there, in cell 0)."""
-    agent = plan_agent(collision_growth=False, collision_split=True)
+    agent = plan_agent(collision_growth=False, collision_cut=True)
     add_cell(agent, (2.0, 2.0))
     add_cell(agent, (20.0, 20.0))
     for xs in leaving:
         remember(agent, xs, 0, (20.0, 20.0), -1.0)
     remember(agent, (3.0, 2.5), 0, (3.0, 2.5), -10.0)
-    return agent, core.split_at_collision(agent._ag, agent._model.a, 0, 0, np.array([3.0, 2.5]))
+    return agent, core.cut_at_collision(agent._ag, agent._model.a, 0, 0, np.array([3.0, 2.5]))
 
 
 def test_a_collision_cuts_the_cell_across_one_axis_between_where_the_decision_collides_and_where_it_leaves():
@@ -70,12 +70,12 @@ def test_a_decision_that_only_ever_collided_is_not_cut():
 
 def test_a_collision_within_d_min_of_where_the_decision_leaves_is_not_cut():
     # From (2.5, 2.2) to (3, 2.5) x differs most, by 0.5: within d_min 1.
-    agent = plan_agent(collision_growth=False, collision_split=True, d_min=1.0)
+    agent = plan_agent(collision_growth=False, collision_cut=True, d_min=1.0)
     add_cell(agent, (2.0, 2.0))
     add_cell(agent, (20.0, 20.0))
     remember(agent, (2.5, 2.2), 0, (20.0, 20.0), -1.0)
     remember(agent, (3.0, 2.5), 0, (3.0, 2.5), -10.0)
-    assert core.split_at_collision(agent._ag, agent._model.a, 0, 0, np.array([3.0, 2.5])) == -1
+    assert core.cut_at_collision(agent._ag, agent._model.a, 0, 0, np.array([3.0, 2.5])) == -1
     assert agent.n_cells == 2
 
 
@@ -84,19 +84,19 @@ def slab(**kw):
     return avq.make_agent("avq", env, seed=0, max_cells=1_000_000, **kw).learn(total_timesteps=20_000)
 
 
-def test_on_a_maze_of_three_dimensions_the_collision_split_grows_far_fewer_cells_than_appending_collisions():
+def test_on_a_maze_of_three_dimensions_the_collision_cut_grows_far_fewer_cells_than_appending_collisions():
     # The paper's growth appends a cell at every collision farther than d_min from every vector: the slabs and the
     # cube's faces are surfaces of two dimensions, which it tiles. The collision split cuts the cells they cross.
     paper = slab()
-    split = slab(collision_growth=False, collision_split=True, axis_share=0.8)
+    split = slab(collision_growth=False, collision_cut=True, axis_share=0.8)
     assert split.n_cells < paper.n_cells / 2
 
 
-def test_collision_split_on_both_paths_gives_identical_results():
+def test_collision_cut_on_both_paths_gives_identical_results():
     out = []
     for fused in (True, False):
         env = gym.make("avq/GridMaze-v0", layout="lau2002")
-        agent = avq.make_agent("avq", env, seed=3, fused=fused, collision_growth=False, collision_split=True)
+        agent = avq.make_agent("avq", env, seed=3, fused=fused, collision_growth=False, collision_cut=True)
         agent.learn(total_episodes=30)
         out.append((agent.codebook_, agent.q_, agent.episode_history()["steps"]))
     for x, y in zip(*out):
@@ -107,24 +107,24 @@ def test_collision_split_on_both_paths_gives_identical_results():
     assert plain.codebook_.shape != out[0][0].shape or not np.array_equal(plain.codebook_, out[0][0])
 
 
-def test_collision_split_resumes_exactly(tmp_path):
+def test_collision_cut_resumes_exactly(tmp_path):
     def agent():
         env = gym.make("avq/SlabMaze-v0", dims=3, move=0.1, layout_seed=3)
-        return avq.make_agent("avq", env, seed=1, collision_growth=False, collision_split=True, axis_share=0.8)
+        return avq.make_agent("avq", env, seed=1, collision_growth=False, collision_cut=True, axis_share=0.8)
 
     whole = agent().learn(total_episodes=30)
     part = agent().learn(total_episodes=12)
     part.save(tmp_path / "m.zip")
     loaded = avq.load(tmp_path / "m.zip").learn(total_episodes=18)
-    assert loaded.collision_split and loaded.axis_share == 0.8
+    assert loaded.collision_cut and loaded.axis_share == 0.8
     assert np.array_equal(whole.codebook_, loaded.codebook_) and np.array_equal(whole.q_, loaded.q_)
 
 
 @pytest.mark.parametrize(
     "kw, words",
     [
-        (dict(collision_split=True), ["collision_growth=True and collision_split=True", "collision_growth=False"]),
-        (dict(collision_growth=False, collision_split="yes"), ["collision_split", "'yes'"]),
+        (dict(collision_cut=True), ["collision_growth=True and collision_cut=True", "collision_growth=False"]),
+        (dict(collision_growth=False, collision_cut="yes"), ["collision_cut", "'yes'"]),
         (dict(axis_share=1.5), ["axis_share", "1.5"]),
         (dict(axis_share=-0.1), ["axis_share", "-0.1"]),
     ],

@@ -68,7 +68,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         d_min: Minimum resolution (scaled units): no vector is appended within ``d_min`` of another.
         collision_growth: The paper's growth: on a collision farther than ``d_min`` from the cell's
             vector, append the observation (docs: explanation/paper.md, Growing).
-        collision_split: Growth on collisions for more than two dimensions, instead of ``collision_growth``
+        collision_cut: Growth on collisions for more than two dimensions, instead of ``collision_growth``
             (whose appended observations tile walls of ``n - 1`` dimensions; give ``collision_growth=False``): a
             decision that collides at ``x`` in a cell from which it was also seen to leave without a collision
             cuts the cell across one axis, the one on which ``x`` and the mean start of the decision's most
@@ -77,7 +77,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             more than ``split_threshold`` beyond what the distance between their starts explains
             (src/avq/agents/plan/kernels.py).
         split_threshold: That excess, > 0.
-        axis_share: The outcome split cuts across one axis alone (as ``collision_split``) where it carries at least
+        axis_share: The outcome split cuts across one axis alone (as ``collision_cut``) where it carries at least
             this share, in [0, 1], of the squared scaled gap between the groups' mean starts; None: their bisector.
         cycle_split: When two decisions lead from a cell to another and straight back, give the square
             of the return a cell of its own (as ``AVQSarsa``'s ``cycle_split``).
@@ -154,7 +154,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         tol: float = 0.01,
         d_min: float = 0.05,
         collision_growth: bool = True,
-        collision_split: bool = False,
+        collision_cut: bool = False,
         outcome_split: bool = True,
         cycle_split: bool = False,
         split_threshold: float = 10.0,
@@ -178,10 +178,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         check_planning_params(self, gamma, epsilon, v_opt, v_min, known_after, n_backups, tol, auto_v_opt=True)
         self.d_min = check_range("d_min", d_min, 0.0, np.inf, high_open=True)
         self.collision_growth = check_bool("collision_growth", collision_growth)
-        self.collision_split = check_bool("collision_split", collision_split)
-        if self.collision_growth and self.collision_split:
+        self.collision_cut = check_bool("collision_cut", collision_cut)
+        if self.collision_growth and self.collision_cut:
             raise ValueError(
-                "collision_growth=True and collision_split=True are two answers to a collision; give "
+                "collision_growth=True and collision_cut=True are two answers to a collision; give "
                 "collision_growth=False to cut cells across one axis at collisions instead of appending them"
             )
         self.outcome_split = check_bool("outcome_split", outcome_split)

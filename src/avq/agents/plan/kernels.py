@@ -190,8 +190,8 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, a
 
 
 @njit(cache=True)
-def split_at_collision(ag: PlanArrays, m: ModelArrays, i: int, a: int, x) -> int:
-    """``collision_split``: decision ``a`` collided at ``x`` in cell ``i`` (its transition recorded), where it
+def cut_at_collision(ag: PlanArrays, m: ModelArrays, i: int, a: int, x) -> int:
+    """``collision_cut``: decision ``a`` collided at ``x`` in cell ``i`` (its transition recorded), where it
     was also seen to leave the cell without a collision. Cut ``i`` across one axis between ``x`` and the mean
     start of the decision's most frequent successor other than ``i`` (:func:`split_cell` with ``axis_share``
     0). Returns the new cell, or -1 (nothing changed: no such successor, or :func:`split_cell` refused)."""
@@ -393,9 +393,9 @@ def end_transition(
             start = start_after_growth(ag, t, i, grown_from)
             ag.mem_i[t, 1] = start
         record_with_start(m, ag.e_xs, ag.mem_x, t, start, a, F[RET], F[DISC], successor(start, jm, crossing), 1)
-        if collision and IP[PlanIntParam.COLLISION_SPLIT]:
+        if collision and IP[PlanIntParam.COLLISION_CUT]:
             if S[SIZE] < max_cells:
-                if split_at_collision(ag, m, i, a, x) >= 0:
+                if cut_at_collision(ag, m, i, a, x) >= 0:
                     S[SPLITS] += 1
                     j, _ = nearest_index(V, S[SIZE], x, inv_scale)  # (the vectors moved)
                     excess = -np.inf  # (the cell's transitions were cut already)

@@ -63,7 +63,7 @@ class PlanIntParam(ParamIndex):
     SPLIT_AFTER = auto()  # 0: off (split_after=None)
     MERGE_NEIGHBOURS = auto()  # merging: each cell's nearest cells among which its partner is sought
     MERGE_SAME_ACTION = auto()  # merging: only cells whose greedy actions agree
-    COLLISION_SPLIT = auto()
+    COLLISION_CUT = auto()
 
 
 # S: int state
