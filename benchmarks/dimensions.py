@@ -278,6 +278,16 @@ def read_csv(path: Path) -> list[dict]:
     return rows
 
 
+def finished(n_jobs: int, jobs: list) -> list[dict]:
+    """Run ``jobs`` on ``n_jobs`` processes, printing a line as each run is returned, in order (runs at d = 6 take minutes)."""
+    rows = []
+    for r in Parallel(n_jobs, return_as="generator")(jobs):
+        rows.append(r)
+        shown = {k: r[k] for k in ("agent", "task", "d", "k", "seed", "env_steps", "cells", "wall_s") if k in r}
+        print(f"  [{len(rows)}/{len(jobs)}] " + ", ".join(f"{k} {v}" for k, v in shown.items()), flush=True)
+    return rows
+
+
 def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict], match: tuple[str, ...]) -> list[dict]:
     """Write ``rows`` with the file's rows kept where no new row has the same ``match`` fields (an agent at a d, say:
     so that agents and dimensions can be added one at a time); return them all."""
@@ -496,7 +506,7 @@ def main() -> None:
                 if n != "grid-ps" or grid_bins(d) <= MAX_BINS
             ]
             print(f"{len(jobs)} runs: SlabMaze d {ds}, seeds {seeds}, budget {budget:,} env steps")
-            rows = write_csv(out / "data" / "dimensions.csv", DIMS_FIELDS, Parallel(args.jobs)(jobs), ("agent", "d"))
+            rows = write_csv(out / "data" / "dimensions.csv", DIMS_FIELDS, finished(args.jobs, jobs), ("agent", "d"))
             dims_table(rows)
         else:
             ks = [int(v) for v in args.k.split(",")] if args.k else QUICK_KS if args.quick else KS
@@ -509,7 +519,7 @@ def main() -> None:
                 for s in seeds
             ]
             print(f"{len(jobs)} runs: {', '.join(TASKS)}, k {ks} ({args.kind}), seeds {seeds}, {episodes} episodes")
-            new = Parallel(args.jobs)(jobs)
+            new = finished(args.jobs, jobs)
             csv_name = "dimensions_irrelevant.csv" if args.kind == "noise" else f"dimensions_irrelevant_{args.kind}.csv"
             rows = write_csv(out / "data" / csv_name, IRR_FIELDS, new, ("task", "agent", "k"))
             irrelevant_table(rows)
