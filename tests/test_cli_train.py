@@ -117,7 +117,7 @@ def test_train_says_which_defaults_it_took(tmp_path, capsys):
         == 2
     )
     assert capsys.readouterr().err.startswith(
-        "avq: error: unknown parameter 'alpha' for agent 'avq'; its parameters: collision_growth, cycle_split, "
+        "avq: error: unknown parameter 'alpha' for agent 'avq'; its parameters: axis_share, collision_cut, collision_growth, "
     )
 
 

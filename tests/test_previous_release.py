@@ -23,6 +23,8 @@ ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True, "
 #: The noise test (ignore_noise) came later still: a file without it loads with it off (save_util.ADDED_SINCE), and
 #: saves its flags (noise_dims, none) and whether the test was made (noise_tested, never).
 ADDED_PARAMS["ignore_noise"] = False
+#: And the cuts across one axis (off).
+ADDED_PARAMS.update(collision_cut=False, axis_share=None)
 #: Since then too, v_opt="auto" on rewards of both signs: the current episode's rewards (episode_rewards) and the
 #: model's ceiling of values (a last entry of m_MP, no ceiling unless rewards of both signs were seen).
 ADDED_ARRAYS = {"m_cint", "episode_rewards", "noise_dims"}
