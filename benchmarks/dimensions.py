@@ -63,6 +63,8 @@ DIMS_AGENTS = {"avq": UNCAPPED, "avq-sarsa": UNCAPPED, "tiles": {"iht_size": 1 <
 #: ``avq`` with the cuts across one axis instead of the paper's growth on collisions (not its defaults: on classic
 #: control the outcome split across one axis costs; docs/results/dimensions.md).
 DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_cut": True, "axis_share": 0.8}
+#: The registered agent of each variant that is not one itself.
+REGISTERED = {"avq-axis": "avq"}
 IRRELEVANT_AGENTS = ("avq", "avq-sarsa", "tiles")
 TASKS = ("MountainCar-v0", "CartPole-v1")
 #: CartPole's velocities are unbounded; tiles cuts a box (benchmarks/compare.py's).
@@ -210,7 +212,7 @@ def dims_run(name: str, d: int, seed: int, budget: int) -> dict:
         overrides = dict(DIMS_AGENTS[name])
         if name == "grid-ps":
             overrides.update(bins=math.ceil(1.0 / MOVE - 1e-9), max_states=grid_bins(d))
-        agent = avq.make_agent(name.removesuffix("-axis"), env, seed=seed, **overrides)
+        agent = avq.make_agent(REGISTERED.get(name, name), env, seed=seed, **overrides)
     starts = maze.start_positions(EVAL_STARTS, seed=EVAL_SEED)
     reached, success, learning = learn_until(agent, lambda a: greedy_success(a, maze, starts), budget, TARGET)
     steps = agent.num_timesteps

@@ -165,15 +165,15 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, a
         g2[d] /= n2
         z = (g1[d] - g2[d]) * inv_scale[d]
         gap += z * z
-    k = 0  # (the axis that carries the most of the gap)
+    axis = 0  # (the axis that carries the most of the gap)
     for d in range(n):
-        if abs(g1[d] - g2[d]) * inv_scale[d] > abs(g1[k] - g2[k]) * inv_scale[k]:
-            k = d
-    along = ((g1[k] - g2[k]) * inv_scale[k]) ** 2
+        if abs(g1[d] - g2[d]) * inv_scale[d] > abs(g1[axis] - g2[axis]) * inv_scale[axis]:
+            axis = d
+    along = ((g1[axis] - g2[axis]) * inv_scale[axis]) ** 2
     if axis_share >= 0.0 and along >= axis_share * gap:
         gap = along
         for d in range(n):
-            if d != k:
+            if d != axis:
                 g1[d] = V[i, d]
                 g2[d] = V[i, d]
     if not np.sqrt(gap) > d_min:

@@ -63,7 +63,7 @@ class PlanIntParam(ParamIndex):
     SPLIT_AFTER = auto()  # 0: off (split_after=None)
     MERGE_NEIGHBOURS = auto()  # merging: each cell's nearest cells among which its partner is sought
     MERGE_SAME_ACTION = auto()  # merging: only cells whose greedy actions agree
-    COLLISION_CUT = auto()
+    COLLISION_CUT = auto()  # growth: a collision cuts its cell across one axis (collision_cut)
 
 
 # S: int state
