@@ -135,6 +135,17 @@ class ZooDQN:
         self.env, self.horizon = Monitor(env), horizon
         self.model = DQN("MlpPolicy", self.env, policy_kwargs={"net_arch": arch}, seed=seed, verbose=0, **params)
 
+    def learn_steps_until(self, target: int) -> None:
+        """Learn until ``target`` env steps in all (SB3's ``learn`` still aimed at the horizon: the same ε)."""
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        class Until(BaseCallback):
+            def _on_step(self) -> bool:
+                return self.num_timesteps < target
+
+        if target > self.num_timesteps:
+            self.model.learn(self.horizon - self.num_timesteps, callback=Until(), reset_num_timesteps=False)
+
     def learn_episodes(self, episodes: int) -> None:
         from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
@@ -235,14 +246,16 @@ def task_params(name: str, task: str, k: int) -> dict:
     return params
 
 
-def to_threshold(returns: np.ndarray, steps: np.ndarray, threshold: float) -> tuple[int | None, int | None]:
-    """Episodes and env steps up to the end of the first window of WINDOW episodes whose mean reaches
+def to_threshold(
+    returns: np.ndarray, steps: np.ndarray, threshold: float, window: int = WINDOW
+) -> tuple[int | None, int | None]:
+    """Episodes and env steps up to the end of the first ``window`` consecutive episodes whose mean reaches
     ``threshold``; ``(None, None)`` if none does."""
-    if len(returns) < WINDOW:
+    if len(returns) < window:
         return None, None
     c = np.cumsum(np.insert(np.asarray(returns, float), 0, 0.0))
-    hit = np.flatnonzero((c[WINDOW:] - c[:-WINDOW]) / WINDOW >= threshold)
-    return (None, None) if hit.size == 0 else (int(hit[0] + WINDOW), int(np.sum(steps[: hit[0] + WINDOW])))
+    hit = np.flatnonzero((c[window:] - c[:-window]) / window >= threshold)
+    return (None, None) if hit.size == 0 else (int(hit[0] + window), int(np.sum(steps[: hit[0] + window])))
 
 
 def irrelevant_run(name: str, task: str, k: int, seed: int, episodes: int, kind: str = "noise") -> dict:

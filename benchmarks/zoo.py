@@ -1,0 +1,175 @@
+"""Classic control at RL Baselines3 Zoo's budgets: the general ``avq`` against the zoo's DQN, run here, on the same
+env steps.
+
+Tasks: MountainCar-v0, CartPole-v1, Acrobot-v1 and LunarLander-v3 (``pip install "gymnasium[box2d]"``), each with
+the zoo's DQN budget in env steps (``ZOO_DQN``'s ``n_timesteps``: 120 k, 50 k, 100 k, 100 k) for every agent:
+
+* ``avq``: the general entry (``PlanningAVQ``'s signature defaults: what a task of the user's own gets);
+* ``avq-entry``: ``make_agent("avq")``, the per-task entry, on the tasks that have one (CartPole-v1, Acrobot-v1);
+* ``tiles``: tile-coding Sarsa(λ) with ``benchmarks/compare.py``'s settings for the task (on Acrobot 4 tiles a
+  dimension in a table of 65,536, its better setting; on CartPole a box for the velocities);
+* ``dqn``: Stable-Baselines3's DQN with the zoo's hyper-parameters (:data:`dimensions.ZOO_DQN`; ``pip install
+  stable-baselines3 torch``, not an extra of avq), its ε schedule the zoo's in env steps;
+* ``random``: uniformly random actions.
+
+Every agent learns in 20 chunks of a twentieth of the budget; after each its greedy policy plays 10 episodes
+(seeded ``10,000 + seed``, the same starts at every check), as the zoo's evaluation does. Per run:
+
+* ``steps_to_threshold``: the env steps at the first check whose greedy mean reaches Gymnasium's reward threshold
+  (MountainCar -110, CartPole 475, Acrobot -100, LunarLander 200); empty if none does;
+* ``greedy_return``: the last check's mean, ``best_greedy`` the best check's; ``final_return``: the mean of the last
+  100 training episodes (with the agent's exploration); ``cells`` (the Q-network's weights for ``dqn``, tiles in
+  use for ``tiles``), ``wall_s`` (learning and checks), ``steps_per_s`` (learning only).
+
+Writes ``OUT/zoo.csv`` (``--out``, default ``docs/data``; rows of (task, agent, seed) not run are kept, so agents
+and seeds can be added one at a time) and prints a Markdown table. Seeds 10-19 are held out from all tuning.
+
+    python benchmarks/zoo.py --seeds 10-19                      # every agent: about 100 min on 2 cores
+    python benchmarks/zoo.py --seeds 10-19 --agents avq,tiles   # without DQN: 5 min
+    python benchmarks/zoo.py --quick --out /tmp/zoo             # a check: budgets / 20, seed 0
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from compare import TASKS as COMPARE_TASKS  # noqa: E402
+from compare import RandomPolicy  # noqa: E402
+from dimensions import ZOO_DQN, ZooDQN, censored_median, finished, require_sb3, seeds_of, spread, write_csv  # noqa: E402
+
+import avq  # noqa: E402
+from avq.agents.registry import defaults_key  # noqa: E402
+from avq.evaluation import evaluate_policy  # noqa: E402
+
+TASKS = ("MountainCar-v0", "CartPole-v1", "Acrobot-v1", "LunarLander-v3")
+AGENTS = ("avq", "avq-entry", "tiles", "dqn", "random")
+CHECKS, CHECK_EPISODES, TAIL = 20, 10, 100
+FIELDS = (
+    "task", "agent", "seed", "budget", "env_steps", "episodes", "threshold", "steps_to_threshold", "greedy_return",
+    "best_greedy", "final_return", "cells", "wall_s", "steps_per_s",
+)  # fmt: skip
+
+
+def has_entry(task: str) -> bool:
+    """Whether ``avq`` has an entry of its own on ``task`` (else ``avq-entry`` is ``avq`` and not run)."""
+    return defaults_key("avq", task) != "*"
+
+
+def make(name: str, env: gym.Env, task: str, seed: int, budget: int):
+    """The learner ``name`` on ``env``, with ``learn_steps(n)``: n more env steps (a policy for ``random``)."""
+    if name == "dqn":
+        return ZooDQN(env, task, seed, budget)
+    if name == "random":
+        return RandomPolicy(env.action_space, seed)
+    if name == "avq":
+        return avq.PlanningAVQ(env, seed=seed)
+    overrides = COMPARE_TASKS[task][2].get(name, {}) if task in COMPARE_TASKS else {}
+    return avq.make_agent("avq" if name == "avq-entry" else name, env, seed=seed, **overrides)
+
+
+def run(name: str, task: str, seed: int, budget: int) -> dict:
+    """One run: ``name`` learns ``budget`` env steps of ``task`` in :data:`CHECKS` chunks, its greedy policy checked
+    after each."""
+    env, eval_env = gym.make(task), gym.make(task)
+    agent = make(name, env, task, seed, budget)
+    threshold = float(gym.spec(task).reward_threshold)
+    t0, learning, greedy, random_returns, lengths = time.perf_counter(), 0.0, [], [], []
+    chunk = budget // CHECKS
+    reached = None
+    for c in range(1, CHECKS + 1):
+        target = budget if c == CHECKS else c * chunk
+        t = time.perf_counter()
+        if name == "random":  # (it learns nothing: its training episodes are what it plays)
+            while sum(lengths) < target:
+                ep = evaluate_policy(agent, env, n_eval_episodes=1, seed=seed * 100_000 + len(lengths))
+                random_returns.append(ep["returns"][0])
+                lengths.append(ep["steps"][0])
+            steps_now = sum(lengths)
+        elif name == "dqn":
+            agent.learn_steps_until(target)
+            steps_now = agent.num_timesteps
+        else:
+            agent.learn(total_timesteps=target - agent.num_timesteps)
+            steps_now = agent.num_timesteps
+        learning += time.perf_counter() - t
+        ev = evaluate_policy(agent, eval_env, n_eval_episodes=CHECK_EPISODES, seed=10_000 + seed)
+        greedy.append(ev["mean_return"])
+        if reached is None and ev["mean_return"] >= threshold:
+            reached = steps_now
+    if name == "random":
+        returns, cells = np.array(random_returns), 0
+    else:
+        returns, cells = np.asarray(agent.episode_history()["return"], float), int(agent.n_cells)
+    return dict(
+        task=task, agent=name, seed=seed, budget=budget, env_steps=int(steps_now), episodes=len(returns),
+        threshold=threshold, steps_to_threshold=reached, greedy_return=round(greedy[-1], 1),
+        best_greedy=round(max(greedy), 1), final_return=round(float(np.mean(returns[-TAIL:])), 1), cells=cells,
+        wall_s=round(time.perf_counter() - t0, 1), steps_per_s=round(steps_now / max(learning, 1e-9)),
+    )  # fmt: skip
+
+
+def table(rows: list[dict]) -> None:
+    print(
+        "| task | agent | env steps to threshold, runs there | greedy return at the end | best check | "
+        "training return (last 100) | cells | env steps/s | s/run |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for task in TASKS:
+        for name in AGENTS:
+            rs = [r for r in rows if r["task"] == task and r["agent"] == name]
+            if not rs:
+                continue
+            ok = [r["steps_to_threshold"] is not None for r in rs]
+            st, cens = censored_median([r["steps_to_threshold"] or r["env_steps"] for r in rs], ok)
+            print(
+                f"| {task} | {name} | {'>' * cens}{st:,.0f}, {sum(ok)}/{len(rs)} | "
+                f"{spread([r['greedy_return'] for r in rs], '{:.1f}')} | {spread([r['best_greedy'] for r in rs], '{:.1f}')} | "
+                f"{spread([r['final_return'] for r in rs], '{:.1f}')} | {spread([r['cells'] for r in rs])} | "
+                f"{np.median([r['steps_per_s'] for r in rs]):,.0f} | {np.median([r['wall_s'] for r in rs]):.0f} |"
+            )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    ap.add_argument("--tasks", default=",".join(TASKS), help=f"comma-separated, of {', '.join(TASKS)}")
+    ap.add_argument("--agents", default=",".join(AGENTS), help=f"comma-separated, of {', '.join(AGENTS)}")
+    ap.add_argument("--seeds", default="10-19", help="a range, as 10-19 (the default: held out from tuning)")
+    ap.add_argument("--quick", action="store_true", help="budgets / 20, a check")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", default="docs/data")
+    args = ap.parse_args()
+    tasks, names = args.tasks.split(","), args.agents.split(",")
+    if bad := [t for t in tasks if t not in TASKS]:
+        ap.error(f"--tasks {','.join(bad)}: choose from {', '.join(TASKS)}")
+    if bad := [n for n in names if n not in AGENTS]:
+        ap.error(f"--agents {','.join(bad)}: choose from {', '.join(AGENTS)}")
+    if args.quick and Path(args.out).resolve() == (Path(__file__).resolve().parents[1] / "docs" / "data"):
+        ap.error("--quick is a check: write it elsewhere than docs/data (e.g. --out /tmp/zoo)")
+    if "dqn" in names:
+        require_sb3()
+    from joblib import delayed
+
+    budgets = {t: ZOO_DQN[t]["n_timesteps"] // (20 if args.quick else 1) for t in tasks}
+    jobs = [
+        delayed(run)(n, t, s, budgets[t])
+        for t in tasks
+        for n in names
+        for s in seeds_of(args.seeds)
+        if n != "avq-entry" or has_entry(t)
+    ]
+    print(f"{len(jobs)} runs: {', '.join(f'{t} {budgets[t]:,}' for t in tasks)} env steps, seeds {args.seeds}")
+    t0 = time.perf_counter()
+    rows = write_csv(Path(args.out) / "zoo.csv", FIELDS, finished(args.jobs, jobs), ("task", "agent", "seed"))
+    table(rows)
+    print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)")
+
+
+if __name__ == "__main__":
+    main()
