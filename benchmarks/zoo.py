@@ -40,8 +40,10 @@ import gymnasium as gym
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from compare import TASKS as COMPARE_TASKS  # noqa: E402
-from compare import RandomPolicy  # noqa: E402
+from compare import (
+    TASKS as COMPARE_TASKS,  # noqa: E402
+    RandomPolicy,  # noqa: E402
+)
 from dimensions import ZOO_DQN, ZooDQN, censored_median, finished, require_sb3, seeds_of, spread, write_csv  # noqa: E402
 
 import avq  # noqa: E402
