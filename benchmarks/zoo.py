@@ -64,6 +64,11 @@ def has_entry(task: str) -> bool:
     return defaults_key("avq", task) != "*"
 
 
+def first_reaching(steps: list[int], means: list[float], threshold: float) -> int | None:
+    """The env steps ``steps[i]`` of the first check ``i`` whose greedy mean ``means[i]`` reaches ``threshold``."""
+    return next((s for s, m in zip(steps, means) if m >= threshold), None)
+
+
 def make(name: str, env: gym.Env, task: str, seed: int, budget: int):
     """The learner ``name`` on ``env``, with ``learn_steps(n)``: n more env steps (a policy for ``random``)."""
     if name == "dqn":
@@ -83,14 +88,14 @@ def run(name: str, task: str, seed: int, budget: int) -> dict:
     agent = make(name, env, task, seed, budget)
     threshold = float(gym.spec(task).reward_threshold)
     t0, learning, greedy, random_returns, lengths = time.perf_counter(), 0.0, [], [], []
-    chunk = budget // CHECKS
-    reached = None
+    chunk, at, player = budget // CHECKS, [], None
     for c in range(1, CHECKS + 1):
         target = budget if c == CHECKS else c * chunk
         t = time.perf_counter()
-        if name == "random":  # (it learns nothing: its training episodes are what it plays)
+        if name == "random":  # (it learns nothing: its training is what a policy of its own plays)
+            player = player or RandomPolicy(env.action_space, seed)
             while sum(lengths) < target:
-                ep = evaluate_policy(agent, env, n_eval_episodes=1, seed=seed * 100_000 + len(lengths))
+                ep = evaluate_policy(player, env, n_eval_episodes=1, seed=seed * 100_000 + len(lengths))
                 random_returns.append(ep["returns"][0])
                 lengths.append(ep["steps"][0])
             steps_now = sum(lengths)
@@ -103,15 +108,14 @@ def run(name: str, task: str, seed: int, budget: int) -> dict:
         learning += time.perf_counter() - t
         ev = evaluate_policy(agent, eval_env, n_eval_episodes=CHECK_EPISODES, seed=10_000 + seed)
         greedy.append(ev["mean_return"])
-        if reached is None and ev["mean_return"] >= threshold:
-            reached = steps_now
+        at.append(steps_now)
     if name == "random":
         returns, cells = np.array(random_returns), 0
     else:
         returns, cells = np.asarray(agent.episode_history()["return"], float), int(agent.n_cells)
     return dict(
         task=task, agent=name, seed=seed, budget=budget, env_steps=int(steps_now), episodes=len(returns),
-        threshold=threshold, steps_to_threshold=reached, greedy_return=round(greedy[-1], 1),
+        threshold=threshold, steps_to_threshold=first_reaching(at, greedy, threshold), greedy_return=round(greedy[-1], 1),
         best_greedy=round(max(greedy), 1), final_return=round(float(np.mean(returns[-TAIL:])), 1), cells=cells,
         wall_s=round(time.perf_counter() - t0, 1), steps_per_s=round(steps_now / max(learning, 1e-9)),
     )  # fmt: skip

@@ -1,0 +1,90 @@
+"""benchmarks/zoo.py: every agent on the same env steps, its greedy policy checked after each chunk."""
+
+import csv
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import avq
+from avq.evaluation import evaluate_policy
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEC = importlib.util.spec_from_file_location("zoo", ROOT / "benchmarks" / "zoo.py")
+zoo = importlib.util.module_from_spec(SPEC)
+SPEC.loader.exec_module(zoo)
+
+
+def test_the_threshold_is_reached_at_the_first_check_whose_greedy_mean_reaches_it():
+    steps, means = [100, 200, 300, 400], [-150.0, -110.0, -120.0, -90.0]
+    assert zoo.first_reaching(steps, means, -110.0) == 200  # (reaching counts: -110 >= -110)
+    assert zoo.first_reaching(steps, means, -100.0) == 400
+    assert zoo.first_reaching(steps, means, -50.0) is None
+
+
+def test_avq_learns_the_budget_exactly_and_its_last_check_is_the_greedy_policy_after_it():
+    row = zoo.run("avq", "CartPole-v1", 0, 1_000)
+    assert row["env_steps"] == 1_000 and row["budget"] == 1_000 and row["threshold"] == 475.0
+    # learn(a) then learn(b) is learn(a + b): the agent of the last check is this one.
+    agent = avq.PlanningAVQ(gym.make("CartPole-v1"), seed=0).learn(total_timesteps=1_000)
+    ev = evaluate_policy(agent, gym.make("CartPole-v1"), n_eval_episodes=zoo.CHECK_EPISODES, seed=10_000)
+    assert row["greedy_return"] == round(ev["mean_return"], 1) and row["best_greedy"] >= row["greedy_return"]
+    returns = agent.episode_history()["return"]
+    assert row["final_return"] == round(float(np.mean(returns[-zoo.TAIL :])), 1)
+    assert row["cells"] == agent.n_cells and row["episodes"] == len(returns)
+    assert row | {"wall_s": 0, "steps_per_s": 0} == zoo.run("avq", "CartPole-v1", 0, 1_000) | {
+        "wall_s": 0,
+        "steps_per_s": 0,
+    }
+
+
+def test_the_general_entry_and_the_per_task_entry_are_different_agents_where_the_task_has_one():
+    assert zoo.has_entry("CartPole-v1") and zoo.has_entry("Acrobot-v1")
+    assert not zoo.has_entry("MountainCar-v0") and not zoo.has_entry("LunarLander-v3")
+    env = gym.make("CartPole-v1")
+    general, entry = zoo.make("avq", env, "CartPole-v1", 0, 100), zoo.make("avq-entry", env, "CartPole-v1", 0, 100)
+    assert general.get_params() == avq.PlanningAVQ(env).get_params() | {"seed": 0}
+    assert entry.get_params() != general.get_params()
+    # tiles gets benchmarks/compare.py's settings for the task (a box for CartPole's unbounded velocities).
+    assert (
+        zoo.make("tiles", env, "CartPole-v1", 0, 100).get_params()["obs_bounds"]
+        == zoo.COMPARE_TASKS["CartPole-v1"][2]["tiles"]["obs_bounds"]
+    )
+
+
+def test_random_plays_seeded_episodes_until_the_budget():
+    row = zoo.run("random", "CartPole-v1", 3, 200)
+    policy = zoo.RandomPolicy(gym.make("CartPole-v1").action_space, 3)
+    env, returns, steps = gym.make("CartPole-v1"), [], 0
+    while steps < 200:
+        ep = evaluate_policy(policy, env, n_eval_episodes=1, seed=300_000 + len(returns))
+        returns.append(ep["returns"][0])
+        steps += ep["steps"][0]
+    assert row["env_steps"] == steps and row["episodes"] == len(returns) and row["cells"] == 0
+    assert row["final_return"] == round(float(np.mean(returns)), 1)
+
+
+def test_the_script_writes_a_row_per_run_and_refuses_unknown_names(tmp_path):
+    script = str(ROOT / "benchmarks" / "zoo.py")
+    cmd = [sys.executable, script, "--quick", "--tasks", "MountainCar-v0", "--agents", "avq-entry,random"]
+    out = subprocess.run(
+        [*cmd, "--seeds", "0-1", "--jobs", "1", "--out", str(tmp_path)], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    rows = list(csv.DictReader((tmp_path / "zoo.csv").open()))
+    # (MountainCar has no entry of avq's own: avq-entry would be avq, not run)
+    assert [(r["task"], r["agent"], r["seed"], r["budget"]) for r in rows] == [
+        ("MountainCar-v0", "random", "0", "6000"), ("MountainCar-v0", "random", "1", "6000"),
+    ]  # fmt: skip
+    assert "| MountainCar-v0 | random |" in out.stdout
+    bad = subprocess.run(
+        [sys.executable, script, "--tasks", "Pong", "--out", str(tmp_path)], capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and "--tasks Pong: choose from MountainCar-v0" in bad.stderr
+    bad = subprocess.run(
+        [sys.executable, script, "--agents", "ppo", "--out", str(tmp_path)], capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and "--agents ppo: choose from avq, avq-entry" in bad.stderr
