@@ -44,7 +44,7 @@ from compare import (
     TASKS as COMPARE_TASKS,  # noqa: E402
     RandomPolicy,  # noqa: E402
 )
-from dimensions import ZOO_DQN, ZooDQN, censored_median, finished, require_sb3, seeds_of, spread, write_csv  # noqa: E402
+from dimensions import ZOO_DQN, ZooDQN, censored_median, finished, read_csv, require_sb3, seeds_of, spread, write_csv  # noqa: E402
 
 import avq  # noqa: E402
 from avq.agents.registry import defaults_key  # noqa: E402
@@ -142,12 +142,61 @@ def table(rows: list[dict]) -> None:
             )
 
 
+def plot(rows: list[dict], path: Path) -> None:
+    """Per task: the greedy return at the end and the env steps to the threshold, a dot per seed (open triangles at
+    the budget: not reached), the median a bar; the threshold and the random policy's median dotted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tasks = [t for t in TASKS if any(r["task"] == t for r in rows)]
+    fig, axes = plt.subplots(2, len(tasks), figsize=(3.3 * len(tasks), 6.4), squeeze=False)
+    for j, task in enumerate(tasks):
+        names = [n for n in AGENTS if n != "random" and any(r["task"] == task and r["agent"] == n for r in rows)]
+        top, bottom = axes[0][j], axes[1][j]
+        rng = np.random.default_rng(0)  # (the dots' horizontal jitter only)
+        for i, name in enumerate(names):
+            color = f"C{AGENTS.index(name)}"  # (an agent's colour is the same in every panel)
+            rs = [r for r in rows if r["task"] == task and r["agent"] == name]
+            x = i + rng.uniform(-0.15, 0.15, len(rs))
+            g = [r["greedy_return"] for r in rs]
+            top.plot(x, g, "o", color=color, ms=4, alpha=0.7)
+            top.plot([i - 0.3, i + 0.3], [np.median(g)] * 2, color=color, lw=2)
+            hit = [(xi, r["steps_to_threshold"]) for xi, r in zip(x, rs) if r["steps_to_threshold"] is not None]
+            miss = [(xi, r["budget"]) for xi, r in zip(x, rs) if r["steps_to_threshold"] is None]
+            for pts, marker in ((hit, "o"), (miss, "^")):
+                if pts:
+                    bottom.plot(*zip(*pts), marker, color=color, ms=5, alpha=0.7, mfc="none" if marker == "^" else None)
+        threshold = next(r["threshold"] for r in rows if r["task"] == task)
+        top.axhline(threshold, color="k", ls=":", lw=1, label=f"threshold {threshold:g}")
+        random = [r["greedy_return"] for r in rows if r["task"] == task and r["agent"] == "random"]
+        if random:
+            top.axhline(np.median(random), color="grey", ls="--", lw=1, label="random policy")
+        budget = next(r["budget"] for r in rows if r["task"] == task)
+        bottom.axhline(budget, color="k", ls=":", lw=1, label=f"budget {budget:,}")
+        top.set(title=task, ylabel="greedy return at the end (10 episodes)" if j == 0 else None)
+        bottom.set(yscale="log", ylabel="env steps to the threshold (^: not reached)" if j == 0 else None)
+        for ax in (top, bottom):
+            ax.set_xticks(range(len(names)), names, rotation=30, fontsize=8)
+            ax.grid(alpha=0.3, axis="y")
+            ax.legend(fontsize=7, loc="best", framealpha=0.6)
+    seeds = sorted({r["seed"] for r in rows})
+    which = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}-{seeds[-1]}"
+    fig.suptitle(f"RL Zoo's DQN budgets, every agent on the same env steps: {which}", fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    print(f"wrote {path}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     ap.add_argument("--tasks", default=",".join(TASKS), help=f"comma-separated, of {', '.join(TASKS)}")
     ap.add_argument("--agents", default=",".join(AGENTS), help=f"comma-separated, of {', '.join(AGENTS)}")
     ap.add_argument("--seeds", default="10-19", help="a range, as 10-19 (the default: held out from tuning)")
     ap.add_argument("--quick", action="store_true", help="budgets / 20, a check")
+    ap.add_argument("--plot", action="store_true", help="only the figure, from OUT/zoo.csv: OUT/../figures/zoo.png")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs/data")
     args = ap.parse_args()
@@ -158,6 +207,11 @@ def main() -> None:
         ap.error(f"--agents {','.join(bad)}: choose from {', '.join(AGENTS)}")
     if args.quick and Path(args.out).resolve() == (Path(__file__).resolve().parents[1] / "docs" / "data"):
         ap.error("--quick is a check: write it elsewhere than docs/data (e.g. --out /tmp/zoo)")
+    figure = Path(args.out).resolve().parent / "figures" / "zoo.png"
+    if args.plot:
+        if not (Path(args.out) / "zoo.csv").exists():
+            ap.error(f"--plot: no {Path(args.out) / 'zoo.csv'}; run the study first (without --plot)")
+        return plot(read_csv(Path(args.out) / "zoo.csv"), figure)
     if "dqn" in names:
         require_sb3()
     from joblib import delayed
@@ -174,6 +228,7 @@ def main() -> None:
     t0 = time.perf_counter()
     rows = write_csv(Path(args.out) / "zoo.csv", FIELDS, finished(args.jobs, jobs), ("task", "agent", "seed"))
     table(rows)
+    plot(rows, figure)
     print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)")
 
 

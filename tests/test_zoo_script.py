@@ -88,3 +88,16 @@ def test_the_script_writes_a_row_per_run_and_refuses_unknown_names(tmp_path):
         [sys.executable, script, "--agents", "ppo", "--out", str(tmp_path)], capture_output=True, text=True
     )
     assert bad.returncode == 2 and "--agents ppo: choose from avq, avq-entry" in bad.stderr
+
+
+def test_plot_draws_the_csv_and_says_what_to_run_without_one(tmp_path):
+    script, data = str(ROOT / "benchmarks" / "zoo.py"), tmp_path / "data"
+    rows = [
+        {"task": t, "agent": a, "seed": s, "budget": 1000, "threshold": 475.0, "greedy_return": 100.0 * s,
+         "steps_to_threshold": 500 if a == "avq" else None}
+        for t in ("CartPole-v1", "Acrobot-v1") for a in ("avq", "tiles", "random") for s in (0, 1)
+    ]  # fmt: skip
+    zoo.plot(rows, tmp_path / "figures" / "zoo.png")
+    assert (tmp_path / "figures" / "zoo.png").stat().st_size > 10_000
+    out = subprocess.run([sys.executable, script, "--plot", "--out", str(data)], capture_output=True, text=True)
+    assert out.returncode == 2 and f"--plot: no {data / 'zoo.csv'}; run the study first" in out.stderr
