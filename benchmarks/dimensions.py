@@ -307,7 +307,7 @@ def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict], match: tupl
     """Write ``rows`` with the file's rows kept where no new row has the same ``match`` fields (an agent at a d, say:
     so that agents and dimensions can be added one at a time); return them all."""
     ran = {tuple(str(r[k]) for k in match) for r in rows}
-    old = [r for r in read_csv(path) if tuple(r[k] for k in match) not in ran]
+    old = [r for r in read_csv(path) if tuple(str(r[k]) for k in match) not in ran]  # (read back: numbers)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)

@@ -55,6 +55,15 @@ def test_the_general_entry_and_the_per_task_entry_are_different_agents_where_the
     )
 
 
+def test_rows_written_again_replace_those_of_the_same_run_and_keep_the_others(tmp_path):
+    path, fields = tmp_path / "zoo.csv", ("task", "agent", "seed", "greedy_return")
+    first = [{"task": "CartPole-v1", "agent": "avq", "seed": s, "greedy_return": 1.5} for s in (10, 11)]
+    zoo.write_csv(path, fields, first, ("task", "agent", "seed"))
+    again = [{"task": "CartPole-v1", "agent": "avq", "seed": 11, "greedy_return": 2.5}]
+    rows = zoo.write_csv(path, fields, again, ("task", "agent", "seed"))
+    assert [(r["seed"], r["greedy_return"]) for r in rows] == [(10, 1.5), (11, 2.5)]
+
+
 def test_random_plays_seeded_episodes_until_the_budget():
     row = zoo.run("random", "CartPole-v1", 3, 200)
     policy = zoo.RandomPolicy(gym.make("CartPole-v1").action_space, 3)
