@@ -70,7 +70,8 @@ def first_reaching(steps: list[int], means: list[float], threshold: float) -> in
 
 
 def make(name: str, env: gym.Env, task: str, seed: int, budget: int):
-    """The learner ``name`` on ``env``, with ``learn_steps(n)``: n more env steps (a policy for ``random``)."""
+    """The learner ``name`` on ``env``: an agent of avq's, :class:`ZooDQN` for ``dqn``, or for ``random`` the policy
+    that the checks play (its training is played by another, :func:`run`)."""
     if name == "dqn":
         return ZooDQN(env, task, seed, budget)
     if name == "random":
