@@ -135,16 +135,21 @@ class ZooDQN:
         self.env, self.horizon = Monitor(env), horizon
         self.model = DQN("MlpPolicy", self.env, policy_kwargs={"net_arch": arch}, seed=seed, verbose=0, **params)
 
-    def learn_steps_until(self, target: int) -> None:
-        """Learn until ``target`` env steps in all (SB3's ``learn`` still aimed at the horizon: the same ε)."""
+    def learn_checked(self, every: int, check) -> None:
+        """Learn up to the horizon in one call of SB3's ``learn``, calling ``check(env_steps)`` after every ``every``
+        env steps and at the horizon (as SB3's EvalCallback does: no training step is lost at a check, as one
+        would be at the end of a ``learn`` call stopped between two of its training rounds)."""
         from stable_baselines3.common.callbacks import BaseCallback
 
-        class Until(BaseCallback):
-            def _on_step(self) -> bool:
-                return self.num_timesteps < target
+        horizon = self.horizon
 
-        if target > self.num_timesteps:
-            self.model.learn(self.horizon - self.num_timesteps, callback=Until(), reset_num_timesteps=False)
+        class Checks(BaseCallback):
+            def _on_step(self) -> bool:
+                if self.num_timesteps % every == 0 or self.num_timesteps == horizon:
+                    check(self.num_timesteps)
+                return True
+
+        self.model.learn(self.horizon, callback=Checks())
 
     def learn_episodes(self, episodes: int) -> None:
         from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes

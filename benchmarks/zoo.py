@@ -83,33 +83,38 @@ def make(name: str, env: gym.Env, task: str, seed: int, budget: int):
 
 
 def run(name: str, task: str, seed: int, budget: int) -> dict:
-    """One run: ``name`` learns ``budget`` env steps of ``task`` in :data:`CHECKS` chunks, its greedy policy checked
-    after each."""
+    """One run: ``name`` learns ``budget`` env steps of ``task``, its greedy policy checked after every
+    :data:`CHECKS`-th of them (``dqn`` in one call of SB3's ``learn``, the others in chunks)."""
     env, eval_env = gym.make(task), gym.make(task)
     agent = make(name, env, task, seed, budget)
     threshold = float(gym.spec(task).reward_threshold)
-    t0, learning, greedy, random_returns, lengths = time.perf_counter(), 0.0, [], [], []
-    chunk, at, player = budget // CHECKS, [], None
-    for c in range(1, CHECKS + 1):
-        target = budget if c == CHECKS else c * chunk
+    t0, evaluating, greedy, at = time.perf_counter(), 0.0, [], []
+
+    def check(steps_now: int) -> None:
+        nonlocal evaluating
         t = time.perf_counter()
-        if name == "random":  # (it learns nothing: its training is what a policy of its own plays)
-            player = player or RandomPolicy(env.action_space, seed)
-            while sum(lengths) < target:
-                ep = evaluate_policy(player, env, n_eval_episodes=1, seed=seed * 100_000 + len(lengths))
-                random_returns.append(ep["returns"][0])
-                lengths.append(ep["steps"][0])
-            steps_now = sum(lengths)
-        elif name == "dqn":
-            agent.learn_steps_until(target)
-            steps_now = agent.num_timesteps
-        else:
-            agent.learn(total_timesteps=target - agent.num_timesteps)
-            steps_now = agent.num_timesteps
-        learning += time.perf_counter() - t
-        ev = evaluate_policy(agent, eval_env, n_eval_episodes=CHECK_EPISODES, seed=10_000 + seed)
-        greedy.append(ev["mean_return"])
-        at.append(steps_now)
+        greedy.append(
+            evaluate_policy(agent, eval_env, n_eval_episodes=CHECK_EPISODES, seed=10_000 + seed)["mean_return"]
+        )
+        at.append(int(steps_now))
+        evaluating += time.perf_counter() - t
+
+    chunk, random_returns, lengths, player = budget // CHECKS, [], [], RandomPolicy(env.action_space, seed)
+    if name == "dqn":  # (one call of SB3's learn, checked from a callback)
+        agent.learn_checked(chunk, check)
+    else:
+        for c in range(1, CHECKS + 1):
+            target = budget if c == CHECKS else c * chunk
+            if name == "random":  # (it learns nothing: its training is what a policy of its own plays)
+                while sum(lengths) < target:
+                    ep = evaluate_policy(player, env, n_eval_episodes=1, seed=seed * 100_000 + len(lengths))
+                    random_returns.append(ep["returns"][0])
+                    lengths.append(ep["steps"][0])
+            else:
+                agent.learn(total_timesteps=target - agent.num_timesteps)
+            check(sum(lengths) if name == "random" else agent.num_timesteps)
+    learning = time.perf_counter() - t0 - evaluating
+    steps_now = at[-1]
     if name == "random":
         returns, cells = np.array(random_returns), 0
     else:
