@@ -42,11 +42,14 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 from joblib import Parallel, delayed
+
+sys.path.insert(0, str(Path(__file__).parent))  # (benchmarks/dimensions.py, imported where used)
 
 #: CartPole's velocities are unbounded; the agents that cut a box need one (``avq`` does not).
 CARTPOLE_BOUNDS = [[-2.4, 2.4], [-3.0, 3.0], [-0.21, 0.21], [-3.5, 3.5]]
@@ -102,13 +105,11 @@ class RandomPolicy:
 
 
 def steps_to_threshold(returns: np.ndarray, steps: np.ndarray, threshold: float) -> int | None:
-    """Env steps up to the end of the first episode where the mean of the last WINDOW returns reaches ``threshold``."""
-    if len(returns) < WINDOW:
-        return None
-    c = np.cumsum(np.insert(np.asarray(returns, float), 0, 0.0))
-    means = (c[WINDOW:] - c[:-WINDOW]) / WINDOW  # means[k]: episodes k .. k + WINDOW - 1
-    hit = np.flatnonzero(means >= threshold)
-    return None if hit.size == 0 else int(np.sum(steps[: hit[0] + WINDOW]))
+    """Env steps up to the end of the first episode where the mean of the last WINDOW returns reaches ``threshold``
+    (``benchmarks/dimensions.py``'s rule)."""
+    from dimensions import to_threshold
+
+    return to_threshold(returns, steps, threshold, WINDOW)[1]
 
 
 def summarize(task: str, agent: str, seed: int, episodes: int, returns, steps, cells, wall: float, ev: dict) -> dict:
