@@ -129,10 +129,10 @@ def run(name: str, task: str, seed: int, budget: int) -> dict:
 
 def table(rows: list[dict]) -> None:
     print(
-        "| task | agent | env steps to threshold, runs there | greedy return at the end | best check | "
+        "| task | agent | env steps to threshold, runs there | greedy return at the end | "
         "training return (last 100) | cells | env steps/s | s/run |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for task in TASKS:
         for name in AGENTS:
             rs = [r for r in rows if r["task"] == task and r["agent"] == name]
@@ -142,7 +142,7 @@ def table(rows: list[dict]) -> None:
             st, cens = censored_median([r["steps_to_threshold"] or r["env_steps"] for r in rs], ok)
             print(
                 f"| {task} | {name} | {'>' * cens}{st:,.0f}, {sum(ok)}/{len(rs)} | "
-                f"{spread([r['greedy_return'] for r in rs], '{:.1f}')} | {spread([r['best_greedy'] for r in rs], '{:.1f}')} | "
+                f"{spread([r['greedy_return'] for r in rs], '{:.1f}')} | "
                 f"{spread([r['final_return'] for r in rs], '{:.1f}')} | {spread([r['cells'] for r in rs])} | "
                 f"{np.median([r['steps_per_s'] for r in rs]):,.0f} | {np.median([r['wall_s'] for r in rs]):.0f} |"
             )
