@@ -38,6 +38,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from joblib import delayed
 
 sys.path.insert(0, str(Path(__file__).parent))
 from compare import (
@@ -99,20 +100,21 @@ def run(name: str, task: str, seed: int, budget: int) -> dict:
         at.append(int(steps_now))
         evaluating += time.perf_counter() - t
 
-    chunk, random_returns, lengths, player = budget // CHECKS, [], [], RandomPolicy(env.action_space, seed)
+    chunk, random_returns, played = budget // CHECKS, [], 0
+    player = RandomPolicy(env.action_space, seed) if name == "random" else None
     if name == "dqn":  # (one call of SB3's learn, checked from a callback)
         agent.learn_checked(chunk, check)
     else:
         for c in range(1, CHECKS + 1):
             target = budget if c == CHECKS else c * chunk
-            if name == "random":  # (it learns nothing: its training is what a policy of its own plays)
-                while sum(lengths) < target:
-                    ep = evaluate_policy(player, env, n_eval_episodes=1, seed=seed * 100_000 + len(lengths))
+            if player is not None:  # (random learns nothing: its training is what a policy of its own plays)
+                while played < target:
+                    ep = evaluate_policy(player, env, n_eval_episodes=1, seed=seed * 100_000 + len(random_returns))
                     random_returns.append(ep["returns"][0])
-                    lengths.append(ep["steps"][0])
+                    played += int(ep["steps"][0])
             else:
                 agent.learn(total_timesteps=target - agent.num_timesteps)
-            check(sum(lengths) if name == "random" else agent.num_timesteps)
+            check(played if player is not None else agent.num_timesteps)
     learning = time.perf_counter() - t0 - evaluating
     steps_now = at[-1]
     if name == "random":
@@ -220,8 +222,6 @@ def main() -> None:
         return plot(read_csv(Path(args.out) / "zoo.csv"), figure)
     if "dqn" in names:
         require_sb3()
-    from joblib import delayed
-
     budgets = {t: ZOO_DQN[t]["n_timesteps"] // (20 if args.quick else 1) for t in tasks}
     jobs = [
         delayed(run)(n, t, s, budgets[t])
