@@ -211,7 +211,7 @@ def test_a_killed_run_continues(tmp_path):
             except KeyError:  # (the study is not made yet)
                 continue
     proc.send_signal(signal.SIGKILL)
-    proc.communicate()
+    proc.communicate(timeout=60)
     before = counts(_study(url))
     assert 2 <= before["done"] < 8
     r = subprocess.run(
@@ -219,6 +219,7 @@ def test_a_killed_run_continues(tmp_path):
         cwd=tmp_path,
         capture_output=True,
         text=True,
+        timeout=600,
     )
     assert r.returncode == 0, r.stderr
     assert f"{before['done']} of 8 trials done" in r.stdout
@@ -228,6 +229,42 @@ def test_a_killed_run_continues(tmp_path):
     retried = [t for t in study.trials if "retry_of" in t.user_attrs]
     assert len(lost) == before["running"] and [t.user_attrs["retry_of"] for t in retried] == [t.number for t in lost]
     assert all(t.state == optuna.trial.TrialState.COMPLETE for t in retried)
+
+
+@pytest.mark.filterwarnings("ignore:Heartbeat of storage")
+def test_a_trial_no_worker_claimed_is_retried_once_it_is_old(tmp_path, monkeypatch):
+    """A worker killed between making its trial and recording its ``host:pid`` leaves a running trial
+    with no heartbeat and no owner: once it is older than CLAIM_S, the next worker fails it and runs it
+    again (it waited for it for ever before)."""
+    import avq.tune.storage as storage
+
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    assert cli_in_process("tune", *TINY, "--storage", url, "--n-trials", "2").returncode == 0
+    study = _study(url)
+    unclaimed = study.ask()
+    claimed = study.ask()
+    claimed.set_user_attr("worker", storage.worker_id())  # this process: alive
+    running = optuna.trial.TrialState.RUNNING
+    assert storage.recover_orphans(study, claim=3600) == 0  # young: a live worker may be about to claim it
+    assert storage.recover_orphans(study, claim=0) == 1  # the claimed one stays: its worker lives
+    trials = study.get_trials(deepcopy=False)
+    assert trials[unclaimed.number].state == optuna.trial.TrialState.FAIL
+    assert trials[claimed.number].state == running
+    (waiting,) = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.WAITING,))
+    assert waiting.user_attrs["retry_of"] == unclaimed.number
+    study.tell(claimed, state=optuna.trial.TrialState.FAIL)
+
+    again = study.ask()  # the retry itself, made and left unclaimed too
+    assert again.number == waiting.number
+    monkeypatch.setattr(storage, "CLAIM_S", 0)
+    r = cli_in_process("tune", "--storage", url, "--n-trials", "4")
+    assert r.returncode == 0, r.stderr
+    trials = _study(url).get_trials(deepcopy=False)
+    assert trials[again.number].state == optuna.trial.TrialState.FAIL
+    (last,) = (t for t in trials if t.user_attrs.get("retry_of") == again.number)
+    assert last.state == optuna.trial.TrialState.COMPLETE and last.user_attrs["retries"] == 2
+    _check_whole(_study(url), 4, 4)
+    assert not [t for t in trials if t.state == running]
 
 
 @pytest.mark.slow

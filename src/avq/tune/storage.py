@@ -8,7 +8,8 @@ agent, task or objective is refused before anything is written.
 A trial that a killed worker left ``RUNNING`` is failed and run again with the same parameters
 (:func:`retry`, at most :data:`MAX_RETRIES` times): at once when its worker was a process of this machine
 that no longer exists (each trial records ``host:pid``), otherwise when its heartbeat (database storages)
-has been silent for :data:`GRACE_S` seconds.
+has been silent for :data:`GRACE_S` seconds. A worker killed between making a trial and recording its
+``host:pid`` leaves a trial with neither: it is failed and run again once it is :data:`CLAIM_S` seconds old.
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ JOURNAL_SUFFIXES = (".log", ".jsonl")
 MAX_RETRIES = 3
 HEARTBEAT_S = 10
 GRACE_S = 60
+#: A live worker records its ``host:pid`` on a trial within milliseconds of making it; one left unclaimed
+#: this long (seconds) was made by a worker that died.
+CLAIM_S = 60
 _FORMS = "sqlite:///FILE.db, postgresql://USER:PASSWORD@HOST/DB, mysql://..., journal:///FILE.log or FILE.log"
 
 
@@ -181,19 +185,27 @@ def worker_id() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def recover_orphans(study: Any) -> int:
-    """Fail and retry the running trials whose worker was a process of this machine that is gone;
-    their count (not on Windows, where the heartbeat alone finds them)."""
+def recover_orphans(study: Any, claim: float | None = None) -> int:
+    """Fail and retry the running trials whose worker was a process of this machine that is gone, and
+    those older than ``claim`` seconds (default :data:`CLAIM_S`) that no worker ever claimed (its
+    ``host:pid`` never recorded); their count. On Windows only the second kind; the heartbeat finds the rest."""
+    import datetime
+
     import optuna
 
-    if os.name == "nt":
-        return 0
     host = socket.gethostname()
+    now = datetime.datetime.now()
     found = 0
     for trial in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-        where, _, pid = str(trial.user_attrs.get("worker", "")).rpartition(":")
-        if where != host or not pid.isdigit() or _alive(int(pid)):
-            continue
+        worker = trial.user_attrs.get("worker")
+        if worker is None:
+            started = trial.datetime_start
+            if started is None or (now - started).total_seconds() <= (CLAIM_S if claim is None else claim):
+                continue
+        else:
+            where, _, pid = str(worker).rpartition(":")
+            if os.name == "nt" or where != host or not pid.isdigit() or _alive(int(pid)):
+                continue
         try:
             study.tell(trial.number, state=optuna.trial.TrialState.FAIL)
         except (ValueError, RuntimeError):

@@ -104,13 +104,13 @@ def _chunks(budget: int, n: int) -> list[int]:
 
 
 def _objective(trial: Any, spec: dict[str, Any], space: dict[str, Range]) -> float:
+    trial.set_user_attr("worker", worker_id())  # first: a trial no worker claims is taken for an orphan
     import optuna
 
     import avq.envs  # noqa: F401  (registers avq's environments in a fresh worker)
     from avq.agents.registry import make_agent
     from avq.runs import make_env
 
-    trial.set_user_attr("worker", worker_id())
     params = {name: r.suggest(trial) for name, r in space.items()}
     try:
         agents = [
