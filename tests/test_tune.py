@@ -267,6 +267,25 @@ def test_a_trial_no_worker_claimed_is_retried_once_it_is_old(tmp_path, monkeypat
     assert not [t for t in trials if t.state == running]
 
 
+@pytest.mark.filterwarnings("ignore:Heartbeat of storage")
+def test_a_worker_with_nothing_to_start_says_what_it_waits_for(tmp_path):
+    import avq.tune.storage as storage
+
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    assert cli_in_process("tune", *TINY, "--storage", url, "--n-trials", "2").returncode == 0
+    study = _study(url)
+    elsewhere = study.ask()
+    elsewhere.set_user_attr("worker", storage.worker_id())  # this process: alive, so its trial is left alone
+    r = cli_in_process("tune", "--storage", url, "--n-trials", "3", "--timeout", "2")
+    assert r.returncode == 0, r.stderr
+    said = [line for line in r.stdout.splitlines() if line.startswith("waiting for")]
+    assert said == [
+        f"waiting for trial {elsewhere.number} ({storage.worker_id()}): the study is full once they end; a trial "
+        "whose worker is gone is run again (at once when it ran on this machine, else when its heartbeat stops)"
+    ]
+    assert _study(url).get_trials(deepcopy=False)[elsewhere.number].state == optuna.trial.TrialState.RUNNING
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("backend", ["local", "dask", "ray"])
 def test_workers_of_a_backend_share_one_study(tmp_path, backend):

@@ -177,6 +177,18 @@ def _say(study: Any, trial: Any) -> None:
     print(f"trial {trial.number} {state}: {what}{cost}", flush=True)
 
 
+def _waiting(study: Any) -> str:
+    """What a worker with no trial left to start waits for: the running trials and their workers."""
+    import optuna
+
+    running = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,))
+    held = ", ".join(f"{t.number} ({t.user_attrs.get('worker', 'no worker yet')})" for t in running)
+    return (
+        f"waiting for trial{'s' * (len(running) > 1)} {held}: the study is full once they end; a trial whose worker is gone is run again "
+        f"(at once when it ran on this machine, else when its heartbeat stops)"
+    )
+
+
 def work(spec: dict[str, Any]) -> dict[str, Any]:
     """Run trials of the study ``spec`` names until it holds ``n_trials`` done ones or the deadline passes;
     returns ``status``, the ``trials`` it ran (their numbers) and, when it failed, the ``error``."""
@@ -205,12 +217,16 @@ def _work(spec: dict[str, Any], ran: list[int]) -> None:
         ran.append(trial.number)
         return _objective(trial, spec, space)
 
+    waiting_said = False
     while deadline is None or time.time() < deadline:
         recover_orphans(study)
         c = counts(study)
         if c["done"] >= spec["n_trials"]:
             return
         if c["done"] + c["running"] >= spec["n_trials"] and not c["waiting"]:
+            if not waiting_said:
+                print(_waiting(study), flush=True)
+                waiting_said = True
             optuna.storages.fail_stale_trials(study)  # (others' trials: finished, or failed and retried, soon)
             time.sleep(POLL_S)
             continue
