@@ -244,6 +244,13 @@ def task_params(name: str, task: str, k: int) -> dict:
     params = agent_defaults(name, task)
     if name == "tiles" and task.startswith("CartPole"):
         params["obs_bounds"] = CARTPOLE_BOUNDS
+    return extend_dims(params, k)
+
+
+def extend_dims(params: dict, k: int) -> dict:
+    """``params`` with its per-dimension settings (``scale_factor``, ``obs_bounds``) extended over ``k`` appended
+    dimensions of :class:`IrrelevantDims`: weight 1, bounds [0, 1]."""
+    params = dict(params)
     if isinstance(params.get("scale_factor"), (list, tuple)):
         params["scale_factor"] = [*params["scale_factor"], *[1.0] * k]
     if params.get("obs_bounds") is not None:

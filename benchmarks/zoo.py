@@ -12,6 +12,10 @@ the zoo's DQN budget in env steps (``ZOO_DQN``'s ``n_timesteps``: 120 k, 50 k, 1
   stable-baselines3 torch``, not an extra of avq), its ε schedule the zoo's in env steps;
 * ``random``: uniformly random actions.
 
+With ``--noise K`` every task has ``K`` noise dimensions appended (:class:`avq.envs.IrrelevantDims`, a uniform draw
+in [0, 1] each step): tiles' per-dimension settings are extended over them, and ``avq-entry`` is not run (a wrapped
+task gets the general defaults). The rows record ``noise``; the figure of ``--noise K`` is ``zoo_noiseK.png``.
+
 Every agent learns in 20 chunks of a twentieth of the budget; after each its greedy policy plays 10 episodes
 (seeded ``10,000 + seed``, the same starts at every check), as the zoo's evaluation does. Per run:
 
@@ -27,6 +31,7 @@ and seeds can be added one at a time) and prints a Markdown table. Seeds 10-19 a
     python benchmarks/zoo.py --seeds 10-19                      # every agent: about 100 min on 2 cores
     python benchmarks/zoo.py --seeds 10-19 --agents avq,tiles   # without DQN: 5 min
     python benchmarks/zoo.py --quick --out /tmp/zoo             # a check: budgets / 20, seed 0
+    python benchmarks/zoo.py --seeds 10-19 --tasks MountainCar-v0,CartPole-v1 --noise 4   # 4 noise dimensions
 """
 
 from __future__ import annotations
@@ -45,17 +50,29 @@ from compare import (
     TASKS as COMPARE_TASKS,  # noqa: E402
     RandomPolicy,  # noqa: E402
 )
-from dimensions import ZOO_DQN, ZooDQN, censored_median, finished, read_csv, require_sb3, seeds_of, spread, write_csv  # noqa: E402
+from dimensions import (  # noqa: E402
+    ZOO_DQN,
+    ZooDQN,
+    censored_median,
+    extend_dims,
+    finished,
+    read_csv,
+    require_sb3,
+    seeds_of,
+    spread,
+    write_csv,
+)
 
 import avq  # noqa: E402
 from avq.agents.registry import defaults_key  # noqa: E402
+from avq.envs import IrrelevantDims  # noqa: E402
 from avq.evaluation import evaluate_policy  # noqa: E402
 
 TASKS = ("MountainCar-v0", "CartPole-v1", "Acrobot-v1", "LunarLander-v3")
 AGENTS = ("avq", "avq-entry", "tiles", "dqn", "random")
 CHECKS, CHECK_EPISODES, TAIL = 20, 10, 100
 FIELDS = (
-    "task", "agent", "seed", "budget", "env_steps", "episodes", "threshold", "steps_to_threshold", "greedy_return",
+    "task", "noise", "agent", "seed", "budget", "env_steps", "episodes", "threshold", "steps_to_threshold", "greedy_return",
     "best_greedy", "final_return", "cells", "wall_s", "steps_per_s",
 )  # fmt: skip
 
@@ -70,24 +87,31 @@ def first_reaching(steps: list[int], means: list[float], threshold: float) -> in
     return next((s for s, m in zip(steps, means) if m >= threshold), None)
 
 
-def make(name: str, env: gym.Env, task: str, seed: int, budget: int):
-    """The learner ``name`` on ``env``: an agent of avq's, :class:`ZooDQN` for ``dqn``, or for ``random`` the policy
-    that the checks play (its training is played by another, :func:`run`)."""
+def make_env(task: str, noise: int) -> gym.Env:
+    """``task``, with ``noise`` noise dimensions appended when it is above 0."""
+    return IrrelevantDims(gym.make(task), noise) if noise else gym.make(task)
+
+
+def make(name: str, env: gym.Env, task: str, seed: int, budget: int, noise: int = 0):
+    """The learner ``name`` on ``env`` (``task`` with ``noise`` dimensions appended): an agent of avq's,
+    :class:`ZooDQN` for ``dqn``, or for ``random`` the policy that the checks play (its training is played by
+    another, :func:`run`)."""
     if name == "dqn":
         return ZooDQN(env, task, seed, budget)
     if name == "random":
         return RandomPolicy(env.action_space, seed)
     if name == "avq":
         return avq.PlanningAVQ(env, seed=seed)
-    overrides = COMPARE_TASKS[task][2].get(name, {}) if task in COMPARE_TASKS else {}
+    overrides = extend_dims(COMPARE_TASKS[task][2].get(name, {}) if task in COMPARE_TASKS else {}, noise)
     return avq.make_agent("avq" if name == "avq-entry" else name, env, seed=seed, **overrides)
 
 
-def run(name: str, task: str, seed: int, budget: int) -> dict:
-    """One run: ``name`` learns ``budget`` env steps of ``task``, its greedy policy checked after every
-    :data:`CHECKS`-th of them (``dqn`` in one call of SB3's ``learn``, the others in chunks)."""
-    env, eval_env = gym.make(task), gym.make(task)
-    agent = make(name, env, task, seed, budget)
+def run(name: str, task: str, seed: int, budget: int, noise: int = 0) -> dict:
+    """One run: ``name`` learns ``budget`` env steps of ``task`` (with ``noise`` dimensions appended), its greedy
+    policy checked after every :data:`CHECKS`-th of them (``dqn`` in one call of SB3's ``learn``, the others in
+    chunks)."""
+    env, eval_env = make_env(task, noise), make_env(task, noise)
+    agent = make(name, env, task, seed, budget, noise)
     threshold = float(gym.spec(task).reward_threshold)
     t0, evaluating, greedy, at = time.perf_counter(), 0.0, [], []
 
@@ -122,7 +146,7 @@ def run(name: str, task: str, seed: int, budget: int) -> dict:
     else:
         returns, cells = np.asarray(agent.episode_history()["return"], float), int(agent.n_cells)
     return dict(
-        task=task, agent=name, seed=seed, budget=budget, env_steps=int(steps_now), episodes=len(returns),
+        task=task, noise=noise, agent=name, seed=seed, budget=budget, env_steps=int(steps_now), episodes=len(returns),
         threshold=threshold, steps_to_threshold=first_reaching(at, greedy, threshold), greedy_return=round(greedy[-1], 1),
         best_greedy=round(max(greedy), 1), final_return=round(float(np.mean(returns[-TAIL:])), 1), cells=cells,
         wall_s=round(time.perf_counter() - t0, 1), steps_per_s=round(steps_now / max(learning, 1e-9)),
@@ -131,33 +155,33 @@ def run(name: str, task: str, seed: int, budget: int) -> dict:
 
 def table(rows: list[dict]) -> None:
     print(
-        "| task | agent | env steps to threshold, runs there | greedy return at the end | "
+        "| task | noise | agent | env steps to threshold, runs there | greedy return at the end | "
         "training return (last 100) | cells | env steps/s | s/run |"
     )
-    print("|---|---|---|---|---|---|---|---|")
-    for task in TASKS:
-        for name in AGENTS:
-            rs = [r for r in rows if r["task"] == task and r["agent"] == name]
-            if not rs:
-                continue
+    print("|---|---|---|---|---|---|---|---|---|")
+    for task, noise, name in ((t, k, n) for t in TASKS for k in sorted({r["noise"] for r in rows}) for n in AGENTS):
+        rs = [r for r in rows if r["task"] == task and r["noise"] == noise and r["agent"] == name]
+        if rs:
             ok = [r["steps_to_threshold"] is not None for r in rs]
             st, cens = censored_median([r["steps_to_threshold"] or r["env_steps"] for r in rs], ok)
             print(
-                f"| {task} | {name} | {'>' * cens}{st:,.0f}, {sum(ok)}/{len(rs)} | "
+                f"| {task} | {noise:.0f} | {name} | {'>' * cens}{st:,.0f}, {sum(ok)}/{len(rs)} | "
                 f"{spread([r['greedy_return'] for r in rs], '{:.1f}')} | "
                 f"{spread([r['final_return'] for r in rs], '{:.1f}')} | {spread([r['cells'] for r in rs])} | "
                 f"{np.median([r['steps_per_s'] for r in rs]):,.0f} | {np.median([r['wall_s'] for r in rs]):.0f} |"
             )
 
 
-def plot(rows: list[dict], path: Path) -> None:
-    """Per task: the greedy return at the end and the env steps to the threshold, a dot per seed (open triangles at
-    the budget: not reached), the median a bar; the threshold and the random policy's median dotted."""
+def plot(rows: list[dict], path: Path, noise: int = 0) -> None:
+    """Per task, of the rows with ``noise`` noise dimensions: the greedy return at the end and the env steps to the
+    threshold, a dot per seed (open triangles at the budget: not reached), the median a bar; the threshold and the
+    random policy's median dotted."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rows = [r for r in rows if r["noise"] == noise]
     tasks = [t for t in TASKS if any(r["task"] == t for r in rows)]
     fig, axes = plt.subplots(2, len(tasks), figsize=(3.3 * len(tasks), 6.4), squeeze=False)
     for j, task in enumerate(tasks):
@@ -191,7 +215,8 @@ def plot(rows: list[dict], path: Path) -> None:
             ax.legend(fontsize=7, loc="best", framealpha=0.6)
     seeds = sorted({r["seed"] for r in rows})
     which = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}-{seeds[-1]}"
-    fig.suptitle(f"RL Zoo's DQN budgets, every agent on the same env steps: {which}", fontsize=10)
+    added = f", {noise} noise dimensions appended" if noise else ""
+    fig.suptitle(f"RL Zoo's DQN budgets, every agent on the same env steps{added}: {which}", fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130)
@@ -204,7 +229,10 @@ def main() -> None:
     ap.add_argument("--agents", default=",".join(AGENTS), help=f"comma-separated, of {', '.join(AGENTS)}")
     ap.add_argument("--seeds", default="10-19", help="a range, as 10-19 (the default: held out from tuning)")
     ap.add_argument("--quick", action="store_true", help="budgets / 20, a check")
-    ap.add_argument("--plot", action="store_true", help="only the figure, from OUT/zoo.csv: OUT/../figures/zoo.png")
+    ap.add_argument("--noise", type=int, default=0, help="noise dimensions appended to every task (default 0)")
+    ap.add_argument(
+        "--plot", action="store_true", help="only the figure, from OUT/zoo.csv: OUT/../figures/zoo.png (zoo_noiseK.png)"
+    )
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs/data")
     args = ap.parse_args()
@@ -215,26 +243,28 @@ def main() -> None:
         ap.error(f"--agents {','.join(bad)}: choose from {', '.join(AGENTS)}")
     if args.quick and Path(args.out).resolve() == (Path(__file__).resolve().parents[1] / "docs" / "data"):
         ap.error("--quick is a check: write it elsewhere than docs/data (e.g. --out /tmp/zoo)")
-    figure = Path(args.out).resolve().parent / "figures" / "zoo.png"
+    if args.noise < 0:
+        ap.error(f"--noise {args.noise}: give a count of noise dimensions, 0 or more")
+    figure = Path(args.out).resolve().parent / "figures" / f"zoo{f'_noise{args.noise}' if args.noise else ''}.png"
     if args.plot:
         if not (Path(args.out) / "zoo.csv").exists():
             ap.error(f"--plot: no {Path(args.out) / 'zoo.csv'}; run the study first (without --plot)")
-        return plot(read_csv(Path(args.out) / "zoo.csv"), figure)
+        return plot(read_csv(Path(args.out) / "zoo.csv"), figure, args.noise)
     if "dqn" in names:
         require_sb3()
     budgets = {t: ZOO_DQN[t]["n_timesteps"] // (20 if args.quick else 1) for t in tasks}
     jobs = [
-        delayed(run)(n, t, s, budgets[t])
+        delayed(run)(n, t, s, budgets[t], args.noise)
         for t in tasks
         for n in names
         for s in seeds_of(args.seeds)
-        if n != "avq-entry" or has_entry(t)
+        if n != "avq-entry" or (has_entry(t) and not args.noise)
     ]
     print(f"{len(jobs)} runs: {', '.join(f'{t} {budgets[t]:,}' for t in tasks)} env steps, seeds {args.seeds}")
     t0 = time.perf_counter()
-    rows = write_csv(Path(args.out) / "zoo.csv", FIELDS, finished(args.jobs, jobs), ("task", "agent", "seed"))
+    rows = write_csv(Path(args.out) / "zoo.csv", FIELDS, finished(args.jobs, jobs), ("task", "noise", "agent", "seed"))
     table(rows)
-    plot(rows, figure)
+    plot(rows, figure, args.noise)
     print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)")
 
 

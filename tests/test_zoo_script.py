@@ -88,7 +88,7 @@ def test_the_script_writes_a_row_per_run_and_refuses_unknown_names(tmp_path):
     assert [(r["task"], r["agent"], r["seed"], r["budget"]) for r in rows] == [
         ("MountainCar-v0", "random", "0", "6000"), ("MountainCar-v0", "random", "1", "6000"),
     ]  # fmt: skip
-    assert "| MountainCar-v0 | random |" in out.stdout
+    assert "| MountainCar-v0 | 0 | random |" in out.stdout
     bad = subprocess.run(
         [sys.executable, script, "--tasks", "Pong", "--out", str(tmp_path)], capture_output=True, text=True
     )
@@ -106,7 +106,37 @@ def test_plot_draws_the_csv_and_says_what_to_run_without_one(tmp_path):
          "steps_to_threshold": 500 if a == "avq" else None}
         for t in ("CartPole-v1", "Acrobot-v1") for a in ("avq", "tiles", "random") for s in (0, 1)
     ]  # fmt: skip
-    zoo.plot(rows, tmp_path / "figures" / "zoo.png")
+    zoo.plot([r | {"noise": 0} for r in rows], tmp_path / "figures" / "zoo.png")
     assert (tmp_path / "figures" / "zoo.png").stat().st_size > 10_000
     out = subprocess.run([sys.executable, script, "--plot", "--out", str(data)], capture_output=True, text=True)
     assert out.returncode == 2 and f"--plot: no {data / 'zoo.csv'}; run the study first" in out.stderr
+
+
+def test_with_noise_every_agent_sees_the_appended_dimensions_and_tiles_bounds_cover_them():
+    row = zoo.run("avq", "CartPole-v1", 0, 1_000, noise=2)
+    assert row["noise"] == 2 and row["env_steps"] == 1_000
+    agent = avq.PlanningAVQ(avq.envs.IrrelevantDims(gym.make("CartPole-v1"), 2), seed=0).learn(total_timesteps=1_000)
+    ev = evaluate_policy(
+        agent, avq.envs.IrrelevantDims(gym.make("CartPole-v1"), 2), n_eval_episodes=zoo.CHECK_EPISODES, seed=10_000
+    )
+    assert row["greedy_return"] == round(ev["mean_return"], 1) and row["cells"] == agent.n_cells
+    tiles = zoo.make("tiles", zoo.make_env("CartPole-v1", 2), "CartPole-v1", 0, 100, noise=2)
+    bounds = zoo.COMPARE_TASKS["CartPole-v1"][2]["tiles"]["obs_bounds"]
+    assert tiles.get_params()["obs_bounds"] == [*bounds, [0.0, 1.0], [0.0, 1.0]]
+    assert zoo.make_env("CartPole-v1", 0).observation_space.shape == (4,)
+
+
+def test_the_script_with_noise_records_it_skips_the_per_task_entry_and_refuses_a_negative_count(tmp_path):
+    script = str(ROOT / "benchmarks" / "zoo.py")
+    cmd = [sys.executable, script, "--quick", "--tasks", "CartPole-v1", "--agents", "avq-entry,random", "--seeds", "0"]
+    out = subprocess.run(
+        [*cmd, "--noise", "2", "--jobs", "1", "--out", str(tmp_path / "data")], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    rows = list(csv.DictReader((tmp_path / "data" / "zoo.csv").open()))
+    # (a wrapped task gets the general defaults: avq-entry would be avq, not run)
+    assert [(r["task"], r["noise"], r["agent"]) for r in rows] == [("CartPole-v1", "2", "random")]
+    assert "| CartPole-v1 | 2 | random |" in out.stdout
+    assert (tmp_path / "figures" / "zoo_noise2.png").exists() and not (tmp_path / "figures" / "zoo.png").exists()
+    bad = subprocess.run([*cmd, "--noise", "-1", "--out", str(tmp_path / "data")], capture_output=True, text=True)
+    assert bad.returncode == 2 and "--noise -1: give a count of noise dimensions, 0 or more" in bad.stderr
