@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -207,8 +208,8 @@ def plot(rows: list[dict], path: Path, noise: int = 0) -> None:
             top.axhline(np.median(random), color="grey", ls="--", lw=1, label="random policy")
         budget = next(r["budget"] for r in rows if r["task"] == task)
         bottom.axhline(budget, color="k", ls=":", lw=1, label=f"budget {budget:,}")
-        top.set(title=task, ylabel="greedy return at the end (10 episodes)" if j == 0 else None)
-        bottom.set(yscale="log", ylabel="env steps to the threshold (^: not reached)" if j == 0 else None)
+        top.set(title=task, ylabel="greedy return at the end\n(10 episodes)" if j == 0 else None)
+        bottom.set(yscale="log", ylabel="env steps to the threshold\n(^: not reached)" if j == 0 else None)
         for ax in (top, bottom):
             ax.set_xticks(range(len(names)), names, rotation=30, fontsize=8)
             ax.grid(alpha=0.3, axis="y")
@@ -216,7 +217,8 @@ def plot(rows: list[dict], path: Path, noise: int = 0) -> None:
     seeds = sorted({r["seed"] for r in rows})
     which = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}-{seeds[-1]}"
     added = f", {noise} noise dimensions appended" if noise else ""
-    fig.suptitle(f"RL Zoo's DQN budgets, every agent on the same env steps{added}: {which}", fontsize=10)
+    title = f"RL Zoo's DQN budgets, every agent on the same env steps{added}: {which}"
+    fig.suptitle(textwrap.fill(title, width=int(12 * fig.get_figwidth())), fontsize=10)  # (about 12 characters an inch)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130)
