@@ -160,7 +160,8 @@ def table(rows: list[dict]) -> None:
         "training return (last 100) | cells | env steps/s | s/run |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
-    for task, noise, name in ((t, k, n) for t in TASKS for k in sorted({r["noise"] for r in rows}) for n in AGENTS):
+    noises = sorted({r["noise"] for r in rows})
+    for task, noise, name in ((t, k, n) for t in TASKS for k in noises for n in AGENTS):
         rs = [r for r in rows if r["task"] == task and r["noise"] == noise and r["agent"] == name]
         if rs:
             ok = [r["steps_to_threshold"] is not None for r in rs]

@@ -184,8 +184,8 @@ def _waiting(study: Any) -> str:
     running = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,))
     held = ", ".join(f"{t.number} ({t.user_attrs.get('worker', 'no worker yet')})" for t in running)
     return (
-        f"waiting for trial{'s' * (len(running) > 1)} {held}: the study is full once they end; a trial whose worker is gone is run again "
-        f"(at once when it ran on this machine, else when its heartbeat stops)"
+        f"waiting for trial{'s' * (len(running) > 1)} {held}: the study is full once they end; "
+        "a trial whose worker is gone is run again (at once when it ran on this machine, else when its heartbeat stops)"
     )
 
 
