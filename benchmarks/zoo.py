@@ -27,11 +27,14 @@ Every agent learns in 20 chunks of a twentieth of the budget; after each its gre
 
 Writes ``OUT/zoo.csv`` (``--out``, default ``docs/data``; rows of (task, agent, seed) not run are kept, so agents
 and seeds can be added one at a time) and prints a Markdown table. Seeds 10-19 are held out from all tuning.
+``--set KEY=VALUE`` changes a parameter of ``avq`` and ``avq-entry``: a variant, written elsewhere than
+``docs/data`` and drawn in no figure.
 
     python benchmarks/zoo.py --seeds 10-19                      # every agent: about 100 min on 2 cores
     python benchmarks/zoo.py --seeds 10-19 --agents avq,tiles   # without DQN: 5 min
     python benchmarks/zoo.py --quick --out /tmp/zoo             # a check: budgets / 20, seed 0
     python benchmarks/zoo.py --seeds 10-19 --tasks MountainCar-v0,CartPole-v1 --noise 4   # 4 noise dimensions
+    python benchmarks/zoo.py --agents avq --set compose_crossings=true --out /tmp/zoo_cc  # a variant of avq's
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import yaml
 from joblib import delayed
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -93,26 +97,28 @@ def make_env(task: str, noise: int) -> gym.Env:
     return IrrelevantDims(gym.make(task), noise) if noise else gym.make(task)
 
 
-def make(name: str, env: gym.Env, task: str, seed: int, budget: int, noise: int = 0):
+def make(name: str, env: gym.Env, task: str, seed: int, budget: int, noise: int = 0, params: dict | None = None):
     """The learner ``name`` on ``env`` (``task`` with ``noise`` dimensions appended): an agent of avq's,
     :class:`ZooDQN` for ``dqn``, or for ``random`` the policy that the checks play (its training is played by
-    another, :func:`run`)."""
+    another, :func:`run`). ``params`` (``--set``) change ``avq``'s and ``avq-entry``'s parameters."""
     if name == "dqn":
         return ZooDQN(env, task, seed, budget)
     if name == "random":
         return RandomPolicy(env.action_space, seed)
     if name == "avq":
-        return avq.PlanningAVQ(env, seed=seed)
+        return avq.PlanningAVQ(env, seed=seed, **(params or {}))
     overrides = extend_dims(COMPARE_TASKS[task][2].get(name, {}) if task in COMPARE_TASKS else {}, noise)
-    return avq.make_agent("avq" if name == "avq-entry" else name, env, seed=seed, **overrides)
+    if name == "avq-entry":
+        return avq.make_agent("avq", env, seed=seed, **overrides, **(params or {}))
+    return avq.make_agent(name, env, seed=seed, **overrides)
 
 
-def run(name: str, task: str, seed: int, budget: int, noise: int = 0) -> dict:
+def run(name: str, task: str, seed: int, budget: int, noise: int = 0, params: dict | None = None) -> dict:
     """One run: ``name`` learns ``budget`` env steps of ``task`` (with ``noise`` dimensions appended), its greedy
     policy checked after every :data:`CHECKS`-th of them (``dqn`` in one call of SB3's ``learn``, the others in
-    chunks)."""
+    chunks); ``params`` as :func:`make`."""
     env, eval_env = make_env(task, noise), make_env(task, noise)
-    agent = make(name, env, task, seed, budget, noise)
+    agent = make(name, env, task, seed, budget, noise, params)
     threshold = float(gym.spec(task).reward_threshold)
     t0, evaluating, greedy, at = time.perf_counter(), 0.0, [], []
 
@@ -226,6 +232,27 @@ def plot(rows: list[dict], path: Path, noise: int = 0) -> None:
     print(f"wrote {path}")
 
 
+def variant(ap: argparse.ArgumentParser, pairs: list[str], names: list[str], out: Path, task: str) -> dict:
+    """``--set``'s parameters, each checked by making ``avq`` with it (``ap.error``, exit 2, on a bad one), or {}."""
+    if not pairs:
+        return {}
+    if not {"avq", "avq-entry"} & set(names):
+        ap.error("--set changes avq and avq-entry, and --agents names neither; add one of them")
+    if out.resolve() == Path(__file__).resolve().parents[1] / "docs" / "data":
+        ap.error("--set makes a variant: write it elsewhere than docs/data (e.g. --out /tmp/zoo_variant)")
+    params = {}
+    for pair in pairs:
+        key, eq, value = pair.partition("=")
+        if not eq or not key:
+            ap.error(f"--set {pair}: give KEY=VALUE, as --set compose_crossings=true")
+        params[key] = yaml.safe_load(value)
+    try:
+        avq.PlanningAVQ(make_env(task, 0), **params)
+    except (TypeError, ValueError) as exc:
+        ap.error(f"--set {' '.join(pairs)}: avq refuses it ({exc}); see help(avq.PlanningAVQ)")
+    return params
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     ap.add_argument("--tasks", default=",".join(TASKS), help=f"comma-separated, of {', '.join(TASKS)}")
@@ -236,6 +263,10 @@ def main() -> None:
     ap.add_argument(
         "--plot", action="store_true", help="only the figure, from OUT/zoo.csv: OUT/../figures/zoo.png (zoo_noiseK.png)"
     )
+    ap.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="a parameter of avq and avq-entry (a YAML value; repeatable): a variant, written elsewhere than docs/data",
+    )  # fmt: skip
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs/data")
     args = ap.parse_args()
@@ -244,6 +275,7 @@ def main() -> None:
         ap.error(f"--tasks {','.join(bad)}: choose from {', '.join(TASKS)}")
     if bad := [n for n in names if n not in AGENTS]:
         ap.error(f"--agents {','.join(bad)}: choose from {', '.join(AGENTS)}")
+    params = variant(ap, args.set, names, Path(args.out), tasks[0])
     if args.quick and Path(args.out).resolve() == (Path(__file__).resolve().parents[1] / "docs" / "data"):
         ap.error("--quick is a check: write it elsewhere than docs/data (e.g. --out /tmp/zoo)")
     if args.noise < 0:
@@ -257,7 +289,7 @@ def main() -> None:
         require_sb3()
     budgets = {t: ZOO_DQN[t]["n_timesteps"] // (20 if args.quick else 1) for t in tasks}
     jobs = [
-        delayed(run)(n, t, s, budgets[t], args.noise)
+        delayed(run)(n, t, s, budgets[t], args.noise, params)
         for t in tasks
         for n in names
         for s in seeds_of(args.seeds)
@@ -267,7 +299,8 @@ def main() -> None:
     t0 = time.perf_counter()
     rows = write_csv(Path(args.out) / "zoo.csv", FIELDS, finished(args.jobs, jobs), ("task", "noise", "agent", "seed"))
     table(rows)
-    plot(rows, figure, args.noise)
+    if not params:  # (a variant's rows are a table to read beside the CSV's, not the figure's)
+        plot(rows, figure, args.noise)
     print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)")
 
 

@@ -101,6 +101,8 @@ def _kill_in_a_trial(proc: subprocess.Popen, url: str) -> tuple[str, int]:
         assert proc.poll() is None, ("avq tune ended before it was killed", out, proc.stderr.read())
         storage = optuna.storages.RDBStorage(url, engine_kwargs={"connect_args": {"timeout": 2}})
         study = optuna.load_study(study_name="avq-nav3d-user-Nav3D-v0", storage=storage)
+        # (every parameter sampled: a trial killed while it samples holds only some, and its retry draws the rest)
+        full = max(len(t.params) for t in study.get_trials(states=(optuna.trial.TrialState.COMPLETE,)))
         while True:
             proc.send_signal(signal.SIGSTOP)
             try:
@@ -110,7 +112,7 @@ def _kill_in_a_trial(proc: subprocess.Popen, url: str) -> tuple[str, int]:
             mine = [
                 t.number
                 for t in running
-                if t.user_attrs.get("worker", "").endswith(f":{proc.pid}") and t.params  # (training, not sampling)
+                if t.user_attrs.get("worker", "").endswith(f":{proc.pid}") and len(t.params) == full  # (training)
             ]
             if mine:
                 proc.send_signal(signal.SIGKILL)

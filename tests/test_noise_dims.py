@@ -10,6 +10,7 @@ import avq
 from avq import AVQSarsa, PlanningAVQ, make_agent
 from avq.agents._noise import NOISE_R2, noise_dims
 from avq.agents._spaces import RunningSpread
+from avq.agents.plan.state import MEM_N
 from avq.envs import IrrelevantDims
 
 
@@ -89,6 +90,43 @@ def test_the_agents_ignore_noise_dimensions_once_the_warmup_is_counted(cls):
     moved[:, 2:] = rng.uniform(0, 1, (200, 2))
     assert agent.cells(obs).tolist() == agent.cells(moved).tolist()
     assert agent.predict(obs)[0].tolist() == agent.predict(moved)[0].tolist()
+
+
+def test_once_the_noise_is_left_out_a_decision_that_ended_only_because_of_it_goes_on():
+    # While the noise counts in the metric, decisions end at nearly every step: the nearest vector jumps with it.
+    # Left out, many such transitions start and end in one cell, where the decision would have gone on. The
+    # agent (no merging) with compose_crossings remembers every transition that ended only because the cell
+    # changed as a crossing, and the model records those whose two ends now lie in one cell as going on (CONT),
+    # not as a decision that ended in its own cell.
+    agent = PlanningAVQ(mountain_car(2), seed=0, scale_warmup=300, compose_crossings=True)
+    assert agent.rho is None
+
+    def crossings():
+        ag, m = agent._ag, agent._model.a  # (taken again: growth reallocates them)
+        rows = ag.mem_i[: int(ag.S[MEM_N])]
+        # MountainCar has no collisions and ends no episode this early: every transition is a crossing.
+        assert (rows[:, 3] == 1).all()
+        goes_on = (rows[:, 1] == rows[:, 2]) & (rows[:, 2] >= 0)
+        # The model counts as going on exactly the crossings whose two ends lie in one cell, pair by pair.
+        for i, a in {(int(r[1]), int(r[0])) for r in rows}:
+            assert m.cint[i, a] == (goes_on & (rows[:, 1] == i) & (rows[:, 0] == a)).sum()
+        return goes_on.sum()
+
+    agent.learn(total_timesteps=250)  # (the noise not yet found)
+    before = crossings()
+    agent.learn(total_timesteps=400)
+    assert np.isinf(agent.scale_[2:]).all()
+    after = crossings()
+    assert before <= 2 and after > 100
+    # Without it (the default), no transition is a crossing and none goes on.
+    plain = PlanningAVQ(mountain_car(2), seed=0, scale_warmup=300).learn(total_timesteps=650)
+    assert np.isinf(plain.scale_[2:]).all()
+    assert not plain._ag.mem_i[: int(plain._ag.S[MEM_N]), 3].any() and plain._model.a.cint.sum() == 0
+
+
+def test_a_bad_compose_crossings_gets_a_clear_error():
+    with pytest.raises(ValueError, match="compose_crossings must be True or False"):
+        PlanningAVQ("MountainCar-v0", compose_crossings=1)
 
 
 @pytest.mark.parametrize(

@@ -25,6 +25,8 @@ ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True, "
 ADDED_PARAMS["ignore_noise"] = False
 #: And the cuts across one axis (off).
 ADDED_PARAMS.update(collision_cut=False, axis_share=None)
+#: And crossings remembered without merging (off).
+ADDED_PARAMS["compose_crossings"] = False
 #: Since then too, v_opt="auto" on rewards of both signs: the current episode's rewards (episode_rewards) and the
 #: model's ceiling of values (a last entry of m_MP, no ceiling unless rewards of both signs were seen).
 ADDED_ARRAYS = {"m_cint", "episode_rewards", "noise_dims"}

@@ -140,3 +140,32 @@ def test_the_script_with_noise_records_it_skips_the_per_task_entry_and_refuses_a
     assert (tmp_path / "figures" / "zoo_noise2.png").exists() and not (tmp_path / "figures" / "zoo.png").exists()
     bad = subprocess.run([*cmd, "--noise", "-1", "--out", str(tmp_path / "data")], capture_output=True, text=True)
     assert bad.returncode == 2 and "--noise -1: give a count of noise dimensions, 0 or more" in bad.stderr
+
+
+def test_set_makes_a_variant_of_avq_and_refuses_what_avq_would(tmp_path):
+    row = zoo.run("avq", "CartPole-v1", 0, 1_000, params={"compose_crossings": True})
+    agent = avq.PlanningAVQ(gym.make("CartPole-v1"), seed=0, compose_crossings=True).learn(total_timesteps=1_000)
+    ev = evaluate_policy(agent, gym.make("CartPole-v1"), n_eval_episodes=zoo.CHECK_EPISODES, seed=10_000)
+    assert row["greedy_return"] == round(ev["mean_return"], 1) and row["cells"] == agent.n_cells
+    entry = zoo.make("avq-entry", gym.make("CartPole-v1"), "CartPole-v1", 0, 100, params={"compose_crossings": True})
+    assert entry.compose_crossings and entry.epsilon == 0.01  # (CartPole's own entry, with the variant's parameter)
+    script = str(ROOT / "benchmarks" / "zoo.py")
+    cmd = [sys.executable, script, "--quick", "--tasks", "CartPole-v1", "--seeds", "0", "--jobs", "1"]
+    out = subprocess.run(
+        [*cmd, "--agents", "avq,random", "--set", "compose_crossings=true", "--out", str(tmp_path / "data")],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    rows = list(csv.DictReader((tmp_path / "data" / "zoo.csv").open()))
+    assert [r["agent"] for r in rows] == ["avq", "random"] and not (tmp_path / "figures").exists()
+    for args, message in [
+        (["--agents", "avq", "--set", "nope=1"], "--set nope=1: avq refuses it"),
+        (["--agents", "avq", "--set", "compose_crossings=1"], "compose_crossings must be True or False"),
+        (["--agents", "avq", "--set", "compose_crossings"], "--set compose_crossings: give KEY=VALUE"),
+        (["--agents", "tiles", "--set", "compose_crossings=true"], "--agents names neither"),
+    ]:
+        bad = subprocess.run([*cmd, *args, "--out", str(tmp_path / "x")], capture_output=True, text=True)
+        assert bad.returncode == 2 and message in bad.stderr, bad.stderr
+    bad = subprocess.run([*cmd, "--agents", "avq", "--set", "compose_crossings=true"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "--set makes a variant: write it elsewhere than docs/data" in bad.stderr
+    assert not (tmp_path / "x").exists()

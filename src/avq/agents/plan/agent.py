@@ -73,9 +73,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             decision that collides at ``x`` in a cell from which it was also seen to leave without a collision
             cuts the cell across one axis, the one on which ``x`` and the mean start of the decision's most
             frequent other successor differ most (scaled); the cell's vector moves along that axis alone to each.
-        outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by
-            more than ``split_threshold`` beyond what the distance between their starts explains
-            (src/avq/agents/plan/kernels.py).
+        outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by more than
+            ``split_threshold`` beyond what the distance between their starts explains (src/avq/agents/plan/kernels.py).
         split_threshold: That excess, > 0.
         axis_share: The outcome split cuts across one axis alone (as ``collision_cut``) where it carries at least
             this share, in [0, 1], of the squared scaled gap between the groups' mean starts; None: their bisector.
@@ -104,12 +103,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``)
             gets an infinite scale, so the distance and the cells ignore it.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
-        split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its
-            cell, at an observation farther than ``d_min`` from every vector, ends there, and that
-            observation becomes a cell of its own (so a cell is at most about ``split_after`` steps across
-            where the agent goes, down to ``d_min``; refused growth is counted once per decision). None: off
-            (a decision lasts until the cell changes). On a task without collisions and with it off, the
-            agent keeps its first cell.
+        split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its cell,
+            at an observation farther than ``d_min`` from every vector, ends there, and that observation becomes a
+            cell of its own (so a cell is at most about ``split_after`` steps across where the agent goes, down to
+            ``d_min``; refused growth is counted once per decision). None: off (a decision lasts until the cell
+            changes). On a task without collisions and with it off, the agent keeps its first cell.
         rho: Merging (the paper's, under the model: src/avq/agents/plan/merge.py): at the end of an episode,
             two cells whose decisions are all known and whose action-value profiles differ by a mean square
             below ``rho`` merge, the pair chosen among each cell's ``merge_neighbours`` nearest; the model of
@@ -117,16 +115,16 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             old border goes on), and the outcome split may cut it again. None: no merging. Merging stops once
             the memory is full (it rebuilds the model from what the memory holds).
         merge_neighbours: How many of a cell's nearest cells may be its partner in a merge, >= 1.
-        merge_same_action: Merge only cells whose greedy actions agree (as ``AVQSarsa``'s): a decision that
-            crossed from one into the other then goes on as it would have been taken again, so a merge does not
-            change where the greedy policy goes.
+        merge_same_action: Merge only cells whose greedy actions agree (as ``AVQSarsa``'s): a decision that crossed
+            from one into the other then goes on as it would have been taken again: the greedy policy goes as before.
+        compose_crossings: Without merging too, a transition that ended only because its cell changed and whose
+            two ends come to lie in one cell (the cells cut, or the metric changed: ``scale="auto"``, noise left
+            out) goes on, as under a merge, rather than ending in its own cell. Always on with ``rho``.
         known_radius: While learning, a decision never tried from within this scaled distance of the current
-            observation (from the mean start of each of its successors' transitions) is worth at least ``v_opt``
-            for that decision (src/avq/agents/plan/explore.py): a decision known from one side of a large cell
-            is tried on the other. None: off (a decision is known wherever in its cell it was tried).
-        fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers
-            only), run the maze and the agent in one compiled loop: the same results as stepping the
-            environment from Python, faster. False always steps the environment from Python.
+            observation (from the mean start of each of its successors' transitions) is worth at least ``v_opt`` for
+            that decision (src/avq/agents/plan/explore.py). None: off (known wherever in its cell it was tried).
+        fused: On ``avq/GridMaze-v0`` and ``avq/RobotMaze-v0`` with noise-free sonar (standard wrappers only), run
+            maze and agent in one compiled loop: the same results, faster. False: step the environment from Python.
         seed: Seed of every random choice the agent makes and of the environment's first reset.
 
     The signature's defaults are those of ``avq`` (and ``avq-plan``) on tasks without collisions; on the mazes
@@ -171,6 +169,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         rho: float | None = None,
         merge_neighbours: int = 3,
         merge_same_action: bool = True,
+        compose_crossings: bool = False,
         known_radius: float | None = None,
         fused: bool = True,
         seed: int | None = None,
@@ -197,6 +196,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self.rho = check_optional(check_range, "rho", rho, 0.0, np.inf, high_open=True)
         self.merge_neighbours = check_int("merge_neighbours", merge_neighbours, 1)
         self.merge_same_action = check_bool("merge_same_action", merge_same_action)
+        self.compose_crossings = check_bool("compose_crossings", compose_crossings)
         self.known_radius = check_optional(check_range, "known_radius", known_radius, 0.0, np.inf, high_open=True)
         self.fused = check_bool("fused", fused)
         super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds, ignore_noise)

@@ -383,8 +383,10 @@ def end_transition(
             seen = F[RET] + (0.0 if terminated else F[DISC] * m.V[j])
             excess = disagreement(ag, m, i, a, seen, value_slope(P, F), other)
         t = S[MEM_POS]
-        # (a crossing: it ended only because the cell changed; composed only where cells merge)
-        crossing = P[PlanParam.RHO] >= 0.0 and not collision and not terminated and j != i
+        # (a crossing: it ended only because the cell changed; where its two ends come to lie in one cell, it goes
+        # on: avq.agents.plan.memory.successor; kept with merging, or compose_crossings)
+        keeps = P[PlanParam.RHO] >= 0.0 or IP[PlanIntParam.COMPOSE_CROSSINGS]
+        crossing = keeps and not collision and not terminated and j != i
         remember(ag, x, a, i, jm, F[RET], F[DISC], crossing)
         start = i
         if P[PlanParam.RHO] >= 0.0 and S[SIZE] > grown_from:

@@ -7,8 +7,9 @@ the new one: :func:`relocate`), so that the model describes the current partitio
 Beyond ``memory``, the oldest transition is overwritten: it stays in the model where it was.
 
 A transition that ended only because the cell changed (a *crossing*: no collision, no end of the episode) and
-whose two ends come to lie in one cell (cells merged) is recorded as going on (:data:`~avq.agents.plan.model.CONT`):
-:func:`successor`.
+whose two ends come to lie in one cell (cells merged; with ``compose_crossings`` also a cell cut, or the metric
+changed) is recorded as going on (:data:`~avq.agents.plan.model.CONT`): :func:`successor`. Otherwise it stays in
+the model as a decision that ended in its own cell, one that costs its return and is then taken again.
 """
 
 from __future__ import annotations
