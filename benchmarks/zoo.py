@@ -76,6 +76,8 @@ from avq.evaluation import evaluate_policy  # noqa: E402
 TASKS = ("MountainCar-v0", "CartPole-v1", "Acrobot-v1", "LunarLander-v3")
 AGENTS = ("avq", "avq-entry", "tiles", "dqn", "random")
 CHECKS, CHECK_EPISODES, TAIL = 20, 10, 100
+#: The project's results, which a check (``--quick``) or a variant (``--set``) must not overwrite.
+DOCS_DATA = Path(__file__).resolve().parents[1] / "docs" / "data"
 FIELDS = (
     "task", "noise", "agent", "seed", "budget", "env_steps", "episodes", "threshold", "steps_to_threshold", "greedy_return",
     "best_greedy", "final_return", "cells", "wall_s", "steps_per_s",
@@ -238,7 +240,7 @@ def variant(ap: argparse.ArgumentParser, pairs: list[str], names: list[str], out
         return {}
     if not {"avq", "avq-entry"} & set(names):
         ap.error("--set changes avq and avq-entry, and --agents names neither; add one of them")
-    if out.resolve() == Path(__file__).resolve().parents[1] / "docs" / "data":
+    if out.resolve() == DOCS_DATA:
         ap.error("--set makes a variant: write it elsewhere than docs/data (e.g. --out /tmp/zoo_variant)")
     params = {}
     for pair in pairs:
@@ -276,7 +278,7 @@ def main() -> None:
     if bad := [n for n in names if n not in AGENTS]:
         ap.error(f"--agents {','.join(bad)}: choose from {', '.join(AGENTS)}")
     params = variant(ap, args.set, names, Path(args.out), tasks[0])
-    if args.quick and Path(args.out).resolve() == (Path(__file__).resolve().parents[1] / "docs" / "data"):
+    if args.quick and Path(args.out).resolve() == DOCS_DATA:
         ap.error("--quick is a check: write it elsewhere than docs/data (e.g. --out /tmp/zoo)")
     if args.noise < 0:
         ap.error(f"--noise {args.noise}: give a count of noise dimensions, 0 or more")

@@ -117,9 +117,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         merge_neighbours: How many of a cell's nearest cells may be its partner in a merge, >= 1.
         merge_same_action: Merge only cells whose greedy actions agree (as ``AVQSarsa``'s): a decision that crossed
             from one into the other then goes on as it would have been taken again: the greedy policy goes as before.
-        compose_crossings: Without merging too, a transition that ended only because its cell changed and whose
-            two ends come to lie in one cell (the cells cut, or the metric changed: ``scale="auto"``, noise left
-            out) goes on, as under a merge, rather than ending in its own cell. Always on with ``rho``.
+        compose_crossings: A transition that ended only because its cell changed, its ends now in one cell (a cut, the
+            metric changed), goes on as under a merge instead of ending in its own cell. Always on with ``rho``.
         known_radius: While learning, a decision never tried from within this scaled distance of the current
             observation (from the mean start of each of its successors' transitions) is worth at least ``v_opt`` for
             that decision (src/avq/agents/plan/explore.py). None: off (known wherever in its cell it was tried).
@@ -230,6 +229,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             rho=-1.0 if self.rho is None else self.rho,
             known_radius=-1.0 if self.known_radius is None else self.known_radius,
             axis_share=-1.0 if self.axis_share is None else self.axis_share,
+            compose_crossings=self.compose_crossings or self.rho is not None,
         )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(

@@ -385,8 +385,7 @@ def end_transition(
         t = S[MEM_POS]
         # (a crossing: it ended only because the cell changed; where its two ends come to lie in one cell, it goes
         # on: avq.agents.plan.memory.successor; kept with merging, or compose_crossings)
-        keeps = P[PlanParam.RHO] >= 0.0 or IP[PlanIntParam.COMPOSE_CROSSINGS]
-        crossing = keeps and not collision and not terminated and j != i
+        crossing = IP[PlanIntParam.COMPOSE_CROSSINGS] and not collision and not terminated and j != i
         remember(ag, x, a, i, jm, F[RET], F[DISC], crossing)
         start = i
         if P[PlanParam.RHO] >= 0.0 and S[SIZE] > grown_from:
