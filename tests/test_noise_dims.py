@@ -10,6 +10,7 @@ import avq
 from avq import AVQSarsa, PlanningAVQ, make_agent
 from avq.agents._noise import NOISE_R2, noise_dims
 from avq.agents._spaces import RunningSpread
+from avq.agents.plan.memory import COMPOSED, HELD
 from avq.agents.plan.state import MEM_N
 from avq.envs import IrrelevantDims
 
@@ -102,15 +103,10 @@ def test_once_the_noise_is_left_out_a_decision_that_ended_only_because_of_it_goe
     assert agent.rho is None
 
     def crossings():
-        ag, m = agent._ag, agent._model.a  # (taken again: growth reallocates them)
-        rows = ag.mem_i[: int(ag.S[MEM_N])]
+        rows = remembered(agent)
         # MountainCar has no collisions and ends no episode this early: every transition is a crossing.
-        assert (rows[:, 3] == 1).all()
-        goes_on = (rows[:, 1] == rows[:, 2]) & (rows[:, 2] >= 0)
-        # The model counts as going on exactly the crossings whose two ends lie in one cell, pair by pair.
-        for i, a in {(int(r[1]), int(r[0])) for r in rows}:
-            assert m.cint[i, a] == (goes_on & (rows[:, 1] == i) & (rows[:, 0] == a)).sum()
-        return goes_on.sum()
+        assert (rows[:, 3] == COMPOSED).all()
+        return going_on(agent, rows[:, 3] == COMPOSED)
 
     agent.learn(total_timesteps=250)  # (the noise not yet found)
     before = crossings()
@@ -118,15 +114,51 @@ def test_once_the_noise_is_left_out_a_decision_that_ended_only_because_of_it_goe
     assert np.isinf(agent.scale_[2:]).all()
     after = crossings()
     assert before <= 2 and after > 100
-    # Without it (the default), no transition is a crossing and none goes on.
-    plain = PlanningAVQ(mountain_car(2), seed=0, scale_warmup=300).learn(total_timesteps=650)
+    # Without it, no transition is a crossing and none goes on.
+    plain = PlanningAVQ(mountain_car(2), seed=0, scale_warmup=300, compose_crossings=False).learn(total_timesteps=650)
     assert np.isinf(plain.scale_[2:]).all()
     assert not plain._ag.mem_i[: int(plain._ag.S[MEM_N]), 3].any() and plain._model.a.cint.sum() == 0
 
 
+def remembered(agent):
+    """The agent's remembered transitions: rows (action, start cell, end cell (-1: the end), crossing flag)."""
+    return agent._ag.mem_i[: int(agent._ag.S[MEM_N])]
+
+
+def going_on(agent, composed):
+    """How many of the remembered transitions (``composed``: those that may go on) start and end in one cell,
+    checked against the model: it counts as going on exactly those, pair by pair."""
+    rows, m = remembered(agent), agent._model.a  # (taken again: growth reallocates them)
+    goes_on = composed & (rows[:, 1] == rows[:, 2]) & (rows[:, 2] >= 0)
+    for i, a in {(int(r[1]), int(r[0])) for r in rows}:
+        assert m.cint[i, a] == (goes_on & (rows[:, 1] == i) & (rows[:, 0] == a)).sum()
+    return goes_on.sum()
+
+
+def test_by_default_the_crossings_remembered_go_on_once_the_noise_test_leaves_dimensions_out():
+    # "noise": every crossing is remembered, held (it ends in its own cell as without the option) until the noise
+    # test leaves dimensions out; then those in memory go on where their two ends lie in one cell. Later
+    # crossings are held again: a cut later does not make them go on.
+    agent = PlanningAVQ(mountain_car(2), seed=0, scale_warmup=300)  # (the default)
+    assert agent.compose_crossings == "noise"
+    agent.learn(total_timesteps=250)
+    rows = remembered(agent)
+    assert len(rows) > 100 and (rows[:, 3] == HELD).all()
+    assert going_on(agent, rows[:, 3] == COMPOSED) == 0 and agent._model.a.cint.sum() == 0
+    agent.learn(total_timesteps=400)
+    assert np.isinf(agent.scale_[2:]).all()
+    rows = remembered(agent)
+    composed = rows[:, 3] == COMPOSED
+    k = int(composed.sum())  # the transitions remembered when the noise was found, in the order they were made
+    assert k >= 100 and composed[:k].all() and (rows[k:, 3] == HELD).all() and len(rows) > k
+    assert going_on(agent, composed) > 100
+
+
 def test_a_bad_compose_crossings_gets_a_clear_error():
-    with pytest.raises(ValueError, match="compose_crossings must be True or False"):
+    with pytest.raises(ValueError, match="compose_crossings must be True, False or 'noise'"):
         PlanningAVQ("MountainCar-v0", compose_crossings=1)
+    with pytest.raises(ValueError, match="compose_crossings must be True, False or 'noise'"):
+        PlanningAVQ("MountainCar-v0", compose_crossings="always")
 
 
 @pytest.mark.parametrize(

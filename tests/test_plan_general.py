@@ -8,6 +8,7 @@ import pytest
 
 import avq
 from avq.agents.plan import model as _model, tabular
+from avq.agents.plan.memory import COMPOSED, HELD
 from avq.agents.plan.state import MEM_N, UNLIMITED_HORIZON, auto_v_opt, best_return_to_go, horizon, value_ceiling
 
 from conftest import ScriptedEnv
@@ -35,12 +36,15 @@ def test_a_decision_that_stays_split_after_steps_in_its_cell_gives_the_observati
     agent = line_agent(LINE).learn(total_episodes=1)
     assert agent.codebook_.ravel().tolist() == [0.0, 1.0, 2.0]
     # The transitions: 0 -> 1 (3 steps), 1 -> 2 (4 steps: x = 1.1-1.3 lie within d_min of 1.0, so the decision
-    # went on past split_after), 2 -> the end (1 step). (The last column, crossings, is kept only with merging on.)
-    assert agent._ag.mem_i[:3].tolist() == [[0, 0, 1, 0], [0, 1, 2, 0], [0, 2, -1, 0]]
+    # went on past split_after), 2 -> the end (1 step). The last column: the first two ended because the cell
+    # changed (crossings), held (HELD: compose_crossings="noise", the default), the third because the episode did.
+    assert agent._ag.mem_i[:3].tolist() == [[0, 0, 1, HELD], [0, 1, 2, HELD], [0, 2, -1, 0]]
     assert agent._ag.mem_f[:3, 0].tolist() == [-3.0, -4.0, -1.0]
-    # With merging on, the first two ended because the cell changed (crossings), the third because the episode did.
+    # With merging on, the crossings go on where their two ends come to lie in one cell (COMPOSED); without
+    # compose_crossings none is kept.
     merging = line_agent(LINE, rho=1.0).learn(total_episodes=1)
-    assert merging._ag.mem_i[:3, 3].tolist() == [1, 1, 0]
+    assert merging._ag.mem_i[:3, 3].tolist() == [COMPOSED, COMPOSED, 0]
+    assert line_agent(LINE, compose_crossings=False).learn(total_episodes=1)._ag.mem_i[:3, 3].tolist() == [0, 0, 0]
     h = agent.episode_history()
     assert h["decisions"].tolist() == [3] and h["n_cells"].tolist() == [3] and h["refused"].tolist() == [0]
 

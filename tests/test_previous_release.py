@@ -25,7 +25,7 @@ ADDED_PARAMS = {"rho": None, "merge_neighbours": 3, "merge_same_action": True, "
 ADDED_PARAMS["ignore_noise"] = False
 #: And the cuts across one axis (off).
 ADDED_PARAMS.update(collision_cut=False, axis_share=None)
-#: And crossings remembered without merging (off).
+#: And crossings remembered without merging (now "noise" by default; a file without it loads with it off).
 ADDED_PARAMS["compose_crossings"] = False
 #: Since then too, v_opt="auto" on rewards of both signs: the current episode's rewards (episode_rewards) and the
 #: model's ceiling of values (a last entry of m_MP, no ceiling unless rewards of both signs were seen).

@@ -10,7 +10,7 @@ parameter is a ``ValueError`` everywhere in avq, whatever its type.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, TypeVar
+from typing import Any, TypeVar, overload
 
 import numpy as np
 
@@ -74,10 +74,17 @@ def check_int(name: str, value: Any, low: int) -> int:
     return int(value)
 
 
-def check_bool(name: str, value: Any) -> bool:
-    """``value`` as a bool if it is ``True`` or ``False`` (NumPy's included; not 0 or 1)."""
+@overload
+def check_bool(name: str, value: Any) -> bool: ...
+@overload
+def check_bool(name: str, value: Any, word: str) -> bool | str: ...
+def check_bool(name: str, value: Any, word: str | None = None) -> bool | str:
+    """``value`` as a bool if it is ``True`` or ``False`` (NumPy's included; not 0 or 1), or the string ``word``
+    itself where one is given."""
+    if word is not None and isinstance(value, str) and value == word:
+        return value
     if not isinstance(value, (bool, np.bool_)):
-        raise InvalidParameterError(name, "True or False", value)
+        raise InvalidParameterError(name, "True or False" if word is None else f"True, False or {word!r}", value)
     return bool(value)
 
 

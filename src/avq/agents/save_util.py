@@ -41,8 +41,9 @@ FORMAT_VERSION = 2
 #: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
 _READABLE_VERSIONS = (1, 2)
 #: Parameters added since a file may have been written whose default now behaves otherwise: a file without one
-#: loads with the value that keeps what it did (ignore_noise: the noise test of avq.agents._noise, off before).
-ADDED_SINCE: dict[str, Any] = {"ignore_noise": False}
+#: loads with the value that keeps what it did (ignore_noise: the noise test of avq.agents._noise, off before;
+#: compose_crossings: "noise" now, off before).
+ADDED_SINCE: dict[str, Any] = {"ignore_noise": False, "compose_crossings": False}
 
 
 def _env_make_args(env: gym.Env) -> dict[str, Any] | None:

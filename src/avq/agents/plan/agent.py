@@ -119,6 +119,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             from one into the other then goes on as it would have been taken again: the greedy policy goes as before.
         compose_crossings: A transition that ended only because its cell changed, its ends now in one cell (a cut, the
             metric changed), goes on as under a merge instead of ending in its own cell. Always on with ``rho``.
+            ``"noise"``: only the transitions remembered when the noise test leaves dimensions out of the metric.
         known_radius: While learning, a decision never tried from within this scaled distance of the current
             observation (from the mean start of each of its successors' transitions) is worth at least ``v_opt`` for
             that decision (src/avq/agents/plan/explore.py). None: off (known wherever in its cell it was tried).
@@ -168,7 +169,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         rho: float | None = None,
         merge_neighbours: int = 3,
         merge_same_action: bool = True,
-        compose_crossings: bool = False,
+        compose_crossings: bool | str = "noise",
         known_radius: float | None = None,
         fused: bool = True,
         seed: int | None = None,
@@ -195,7 +196,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self.rho = check_optional(check_range, "rho", rho, 0.0, np.inf, high_open=True)
         self.merge_neighbours = check_int("merge_neighbours", merge_neighbours, 1)
         self.merge_same_action = check_bool("merge_same_action", merge_same_action)
-        self.compose_crossings = check_bool("compose_crossings", compose_crossings)
+        self.compose_crossings = check_bool("compose_crossings", compose_crossings, "noise")
         self.known_radius = check_optional(check_range, "known_radius", known_radius, 0.0, np.inf, high_open=True)
         self.fused = check_bool("fused", fused)
         super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds, ignore_noise)
@@ -222,6 +223,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
 
     def _setup(self) -> None:
         n, cap = len(self._scale), min(self.max_cells, 256) + core.APPENDS_PER_STEP
+        held = memory.HELD if self.compose_crossings == "noise" else 0  # (remembered, composed on noise)
         values = dict(
             self.get_params(),
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
@@ -229,7 +231,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             rho=-1.0 if self.rho is None else self.rho,
             known_radius=-1.0 if self.known_radius is None else self.known_radius,
             axis_share=-1.0 if self.axis_share is None else self.axis_share,
-            compose_crossings=self.compose_crossings or self.rho is not None,
+            compose_crossings=memory.COMPOSED if self.compose_crossings is True or self.rho is not None else held,
         )
         #: The agent's arrays as its kernels take them (avq.agents.plan.state); the model's are self._model.a.
         self._ag = PlanArrays(
@@ -348,10 +350,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
+        noise = np.isinf(self._scale).sum()
         if self._refresh_metric(self._spread, self._ag.inv_scale):
-            # scale="auto" or the noise test: the metric changed, so the cells of the remembered transitions may have; the model
-            # follows them (the codebook keeps its vectors in observation units).
-            memory.relocate(self._ag, self._model.a, -1, -1)
+            # scale="auto" or the noise test: the metric changed, so the cells of the remembered transitions may have; the
+            # model follows them (the codebook keeps its vectors in observation units), composing held crossings on noise.
+            memory.relocate(self._ag, self._model.a, -1, -1, np.isinf(self._scale).sum() > noise)
             self._ag.S[GEOM] += 1
         if self.v_opt == "auto":
             self._to_go_max = max(self._to_go_max, best_return_to_go(self._ep_rewards, self.gamma))
@@ -406,16 +409,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     def _state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         meta, arrays = super()._state_dict()
         ag = self._ag
-        arrays.update(
-            codebook=self.codebook_,
-            S=ag.S.copy(),
-            F=ag.F.copy(),
-            xs=ag.xs.copy(),
-            mem_x=ag.mem_x.copy(),
-            mem_i=ag.mem_i.copy(),
-            mem_f=ag.mem_f.copy(),
-            e_xs=ag.e_xs[: int(self._model.a.C[_model.N_EDGES])].copy(),
-        )
+        arrays.update({name: getattr(ag, name).copy() for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f")})
+        arrays.update(codebook=self.codebook_, e_xs=ag.e_xs[: int(self._model.a.C[_model.N_EDGES])].copy())
         arrays.update(self._model.state_dict())
         scale_meta, scale_arrays = self._metric_state(self._spread)
         meta.update(

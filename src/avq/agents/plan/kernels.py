@@ -385,7 +385,7 @@ def end_transition(
         t = S[MEM_POS]
         # (a crossing: it ended only because the cell changed; where its two ends come to lie in one cell, it goes
         # on: avq.agents.plan.memory.successor; kept with merging, or compose_crossings)
-        crossing = IP[PlanIntParam.COMPOSE_CROSSINGS] and not collision and not terminated and j != i
+        crossing = 0 if collision or terminated or j == i else IP[PlanIntParam.COMPOSE_CROSSINGS]
         remember(ag, x, a, i, jm, F[RET], F[DISC], crossing)
         start = i
         if P[PlanParam.RHO] >= 0.0 and S[SIZE] > grown_from:

@@ -10,6 +10,9 @@ A transition that ended only because the cell changed (a *crossing*: no collisio
 whose two ends come to lie in one cell (cells merged; with ``compose_crossings`` also a cell cut, or the metric
 changed) is recorded as going on (:data:`~avq.agents.plan.model.CONT`): :func:`successor`. Otherwise it stays in
 the model as a decision that ended in its own cell, one that costs its return and is then taken again.
+A crossing is kept as :data:`COMPOSED` (it goes on) or :data:`HELD` (``compose_crossings="noise"``: it is
+remembered as a crossing, but goes on only once :func:`relocate` is told to compose the held ones, when the noise
+test leaves dimensions out of the metric).
 """
 
 from __future__ import annotations
@@ -21,14 +24,20 @@ from avq.agents.plan.queue import push
 from avq.agents.plan.state import MEM_N, MEM_POS, SIZE, PlanArrays, PlanIntParam
 from avq.quantizer import nearest_index
 
-__all__ = ["remember", "relocate", "record_with_start", "successor"]
+__all__ = ["remember", "relocate", "record_with_start", "successor", "COMPOSED", "HELD"]
+
+#: A remembered transition's crossing flag: a crossing that goes on where its two ends lie in one cell.
+COMPOSED = 1
+#: A crossing that does not go on (yet): ``relocate(..., compose_held=True)`` makes it :data:`COMPOSED`.
+HELD = 2
 
 
 @njit(cache=True, inline="always")
 def successor(start: int, end: int, crossing: int) -> int:
     """The successor in the model of a transition from cell ``start`` to cell ``end`` (-1: terminal):
-    :data:`~avq.agents.plan.model.CONT` for a crossing that ends in the cell it started in (the decision goes on)."""
-    return CONT if crossing and end == start else end
+    :data:`~avq.agents.plan.model.CONT` for a :data:`COMPOSED` crossing that ends in the cell it started in (the
+    decision goes on)."""
+    return CONT if crossing == COMPOSED and end == start else end
 
 
 @njit(cache=True, inline="always")
@@ -97,21 +106,25 @@ def record_with_start(
 
 
 @njit(cache=True)
-def relocate(ag: PlanArrays, m: ModelArrays, u: int, w: int) -> None:
+def relocate(ag: PlanArrays, m: ModelArrays, u: int, w: int, compose_held: bool = False) -> None:
     """After vectors ``u`` and ``w`` changed (``u = w = -1``: the metric changed), move every remembered
-    transition whose start or end cell changed to its new pair in the model (and queue both cells' backups)."""
+    transition whose start or end cell changed to its new pair in the model (and queue both cells' backups).
+    ``compose_held``: every :data:`HELD` crossing becomes :data:`COMPOSED` (and moves in the model where that
+    changes its successor)."""
     V, inv_scale, mem_x, mem_i, mem_f = ag.V, ag.inv_scale, ag.mem_x, ag.mem_i, ag.mem_f
     e_xs, heap, hpos, prio, C = ag.e_xs, m.heap, m.hpos, m.prio, m.C  # (written: see the note on ModelArrays)
     n = V.shape[1]
     size = ag.S[SIZE]
     for t in range(ag.S[MEM_N]):
         a, cs, ce, cross = mem_i[t, 0], mem_i[t, 1], mem_i[t, 2], mem_i[t, 3]
+        now = COMPOSED if compose_held and cross == HELD else cross
         ns = _cell_after(V, size, mem_x, t, 0, cs, u, w, inv_scale)
         ne = ce if ce < 0 else _cell_after(V, size, mem_x, t, n, ce, u, w, inv_scale)
-        if ns == cs and ne == ce:
+        mem_i[t, 3] = now
+        if ns == cs and ne == ce and successor(cs, ce, cross) == successor(ns, ne, now):
             continue
         record_with_start(m, e_xs, mem_x, t, cs, a, mem_f[t, 0], mem_f[t, 1], successor(cs, ce, cross), -1)
-        record_with_start(m, e_xs, mem_x, t, ns, a, mem_f[t, 0], mem_f[t, 1], successor(ns, ne, cross), 1)
+        record_with_start(m, e_xs, mem_x, t, ns, a, mem_f[t, 0], mem_f[t, 1], successor(ns, ne, now), 1)
         push(heap, hpos, prio, C, cs, FIRST)
         push(heap, hpos, prio, C, ns, FIRST)
         mem_i[t, 1] = ns
@@ -131,9 +144,9 @@ def start_after_growth(ag: PlanArrays, t: int, i: int, grown_from: int) -> int:
 
 
 @njit(cache=True, inline="always")
-def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float, crossing: bool) -> None:
-    """Keep the transition ``(i, a) -> j`` from ``ag.xs`` to ``x`` (``crossing``: it ended only because the cell
-    changed) in the memory. When it is full, the oldest
+def remember(ag: PlanArrays, x, a: int, i: int, j: int, R: float, disc: float, crossing: int) -> None:
+    """Keep the transition ``(i, a) -> j`` from ``ag.xs`` to ``x`` (``crossing``: 0, or :data:`COMPOSED` or
+    :data:`HELD` when it ended only because the cell changed) in the memory. When it is full, the oldest
     is overwritten: it stays in the model, in the cells it was in, but no longer follows their changes."""
     S, IP, xs, mem_x, mem_i, mem_f = ag.S, ag.IP, ag.xs, ag.mem_x, ag.mem_i, ag.mem_f
     t = S[MEM_POS]

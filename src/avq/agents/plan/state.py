@@ -64,7 +64,7 @@ class PlanIntParam(ParamIndex):
     MERGE_NEIGHBOURS = auto()  # merging: each cell's nearest cells among which its partner is sought
     MERGE_SAME_ACTION = auto()  # merging: only cells whose greedy actions agree
     COLLISION_CUT = auto()  # growth: a collision cuts its cell across one axis (collision_cut)
-    COMPOSE_CROSSINGS = auto()  # crossings remembered: compose_crossings, or merging (rho) on
+    COMPOSE_CROSSINGS = auto()  # crossings remembered: 0 no; memory.COMPOSED (compose_crossings, rho); memory.HELD
 
 
 # S: int state
