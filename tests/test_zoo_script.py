@@ -160,7 +160,7 @@ def test_set_makes_a_variant_of_avq_and_refuses_what_avq_would(tmp_path):
     assert [r["agent"] for r in rows] == ["avq", "random"] and not (tmp_path / "figures").exists()
     for args, message in [
         (["--agents", "avq", "--set", "nope=1"], "--set nope=1: avq refuses it"),
-        (["--agents", "avq", "--set", "compose_crossings=1"], "compose_crossings must be True or False"),
+        (["--agents", "avq", "--set", "compose_crossings=1"], "compose_crossings must be True, False or 'noise'"),
         (["--agents", "avq", "--set", "compose_crossings"], "--set compose_crossings: give KEY=VALUE"),
         (["--agents", "tiles", "--set", "compose_crossings=true"], "--agents names neither"),
     ]:
