@@ -119,7 +119,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             from one into the other then goes on as it would have been taken again: the greedy policy goes as before.
         compose_crossings: A transition that ended only because its cell changed, its ends now in one cell (a cut, the
             metric changed), goes on as under a merge instead of ending in its own cell. Always on with ``rho``.
-            ``"noise"``: only the transitions remembered when the noise test leaves dimensions out of the metric.
+            ``"noise"`` (the default): only the transitions remembered when the noise test leaves dimensions out of
+            the metric; where it finds no noise, as ``False``.
         known_radius: While learning, a decision never tried from within this scaled distance of the current
             observation (from the mean start of each of its successors' transitions) is worth at least ``v_opt`` for
             that decision (src/avq/agents/plan/explore.py). None: off (known wherever in its cell it was tried).

@@ -384,7 +384,7 @@ def end_transition(
             excess = disagreement(ag, m, i, a, seen, value_slope(P, F), other)
         t = S[MEM_POS]
         # (a crossing: it ended only because the cell changed; where its two ends come to lie in one cell, it goes
-        # on: avq.agents.plan.memory.successor; kept with merging, or compose_crossings)
+        # on: avq.agents.plan.memory.successor; COMPOSED with merging or compose_crossings, HELD with "noise")
         crossing = 0 if collision or terminated or j == i else IP[PlanIntParam.COMPOSE_CROSSINGS]
         remember(ag, x, a, i, jm, F[RET], F[DISC], crossing)
         start = i
