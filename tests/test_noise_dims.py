@@ -8,8 +8,8 @@ import pytest
 
 import avq
 from avq import AVQSarsa, PlanningAVQ, make_agent
-from avq.agents._noise import NOISE_R2, noise_dims
-from avq.agents._spaces import RunningSpread
+from avq.agents._noise import NOISE_R2, RELEVANT_R2, matters, noise_dims
+from avq.agents._spaces import RunningSpread, load_scale_state
 from avq.agents.plan.memory import COMPOSED, HELD
 from avq.agents.plan.state import MEM_N
 from avq.envs import IrrelevantDims
@@ -72,6 +72,108 @@ def test_the_log_keeps_the_first_observations_and_whether_each_follows_the_one_b
     assert not log.add(np.array([5.0, 6.0]), start=True)  # full now
     assert not log.add(np.array([7.0, 8.0])) and log.count == 3 and log.full
     assert log.obs.tolist() == [[1, 2], [3, 4], [5, 6]] and log.follows.tolist() == [False, True, False]
+    assert log.actions.tolist() == [-1, -1, -1] and log.rewards.tolist() == [0, 0, 0]
+    log = RunningSpread(1, 2, log=True)
+    log.add(np.array([1.0]), start=True)
+    log.add(np.array([2.0]), False, 3, -1.5)  # (the action taken in [1.0] and the reward that came with [2.0])
+    assert log.actions.tolist() == [-1, 3] and log.rewards.tolist() == [0.0, -1.5]
+
+
+def drawn_afresh(t=1000, seed=0):
+    """``t`` steps of one episode: dimension 0 a drift, 1 and 2 drawn afresh at every step, actions 0 or 1 at random;
+    the reward is +1 where the action is 1 exactly when dimension 1 is above 0.5 (a context), else -1; dimension 2
+    is appended noise. ``actions[s]`` and ``rewards[s]`` are those of the step into ``obs[s]``."""
+    rng = np.random.default_rng(seed)
+    obs = np.column_stack([np.cumsum(rng.uniform(-0.01, 0.01, t)), rng.uniform(0, 1, (t, 2))])
+    actions = np.r_[-1, rng.integers(0, 2, t - 1)]
+    rewards = np.r_[0.0, np.where(actions[1:] == (obs[:-1, 1] > 0.5), 1.0, -1.0)]
+    return obs, np.r_[False, np.ones(t - 1, dtype=bool)], actions, rewards
+
+
+def test_a_dimension_drawn_afresh_that_sets_the_reward_is_kept_and_noise_beside_it_is_not():
+    obs, follows, actions, rewards = drawn_afresh()
+    assert noise_dims(obs, follows).tolist() == [False, True, True]  # (unpredictable, both)
+    assert noise_dims(obs, follows, actions, rewards).tolist() == [False, False, True]
+    after = np.flatnonzero(follows)
+    kept = matters(obs, after, actions[after], rewards[after], np.array([False, True, True]))
+    assert kept.tolist() == [False, True, False]
+    # The same rewards drawn at random: nothing to explain, so dimension 1 is noise again.
+    shuffled = np.random.default_rng(1).permutation(rewards)
+    assert noise_dims(obs, follows, actions, shuffled).tolist() == [False, True, True]
+
+
+def test_a_dimension_drawn_afresh_that_moves_the_next_state_is_kept():
+    # A gust drawn afresh each step (dimension 1) pushes the position (dimension 0) along with the action; the
+    # rewards are constant, so only the next position tells. Moved by a tenth of its own spread, it explains far
+    # more than RELEVANT_R2 of the move's variance that the action leaves.
+    rng = np.random.default_rng(0)
+    t = 1000
+    gust, actions = rng.uniform(-1, 1, t), np.r_[-1, rng.integers(0, 2, t - 1)]
+    pos = np.zeros(t)
+    for s in range(1, t):
+        pos[s] = pos[s - 1] + 0.1 * (2 * actions[s] - 1) + 0.1 * gust[s - 1] + rng.normal(0, 0.02)
+    obs, follows = np.column_stack([pos, gust]), np.r_[False, np.ones(t - 1, dtype=bool)]
+    assert noise_dims(obs, follows).tolist() == [False, True]
+    assert noise_dims(obs, follows, actions, np.zeros(t)).tolist() == [False, False]
+    after = np.flatnonzero(follows)
+    move_left = np.var(pos[after] - pos[after - 1] - 0.1 * (2 * actions[after] - 1))
+    assert 0.1**2 * np.var(gust) / move_left > 10 * RELEVANT_R2
+
+
+class Context(gym.Env):
+    """100 steps an episode; the observation is a context drawn afresh at every step and the time; the action
+    equal to (context > 0.5) pays +1, the other -1."""
+
+    observation_space = gym.spaces.Box(0.0, 1.0, (2,), np.float32)
+    action_space = gym.spaces.Discrete(2)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.t = 0
+        return self._obs(), {}
+
+    def _obs(self):
+        self.c = self.np_random.uniform()
+        return np.array([self.c, self.t / 100], np.float32)
+
+    def step(self, action):
+        r = 1.0 if int(action) == int(self.c > 0.5) else -1.0
+        self.t += 1
+        return self._obs(), r, False, self.t >= 100, {}
+
+
+@pytest.mark.parametrize("cls", [PlanningAVQ, AVQSarsa])
+def test_the_agents_keep_a_context_drawn_afresh_that_sets_the_reward(tmp_path, cls):
+    agent = cls(Context(), seed=0, scale_warmup=300).learn(total_timesteps=1_000)
+    assert np.isfinite(agent.scale_).all()  # (the test was made: 1,000 steps > 300)
+    assert np.isinf(cls(IrrelevantDims(Context(), 1), seed=0, scale_warmup=300).learn(total_timesteps=1_000).scale_[2])
+    # Saved during the warm-up, the log keeps the steps' actions and rewards.
+    part = cls(Context(), seed=0, scale_warmup=300).learn(total_timesteps=200)
+    loaded = avq.load(part.save(tmp_path / "m.zip"), env=Context())
+    steps = loaded._spread.follows[:200]  # (the steps within an episode: 99 of each 100 observations)
+    assert steps.sum() == 198 and (loaded._spread.actions[:200][steps] >= 0).all()
+    assert (np.abs(loaded._spread.rewards[:200][steps]) == 1.0).all()
+    assert np.array_equal(loaded._spread.actions, part._spread.actions)
+    assert np.array_equal(loaded._spread.rewards, part._spread.rewards)
+
+
+def test_planning_avq_learns_a_context_drawn_afresh():
+    agent = PlanningAVQ(Context(), seed=0).learn(total_timesteps=20_000)
+    assert np.isfinite(agent.scale_).all() and agent.episode_history()["return"][-20:].mean() > 50
+    blind = PlanningAVQ(Context(), seed=0, scale=[1e9, 1.0]).learn(total_timesteps=20_000)  # (the context left out)
+    assert abs(blind.episode_history()["return"][-20:].mean()) < 20
+
+
+def test_an_old_noise_log_without_actions_and_rewards_loads():
+    spread = RunningSpread(1, 3, log=True)
+    log = np.array([[1.0, 0.0], [2.0, 1.0]])  # (observation, follows): as saved before actions and rewards
+    load_scale_state({"scale_count": 2}, {"noise_log": log}, np.ones(1), np.ones(1, dtype=bool), spread)
+    assert spread.obs[:2].ravel().tolist() == [1.0, 2.0] and spread.follows[:2].tolist() == [False, True]
+    assert spread.actions[:2].tolist() == [-1, -1] and spread.rewards[:2].tolist() == [0.0, 0.0]
+    with pytest.raises(ValueError, match=r"array noise_log has shape \(2, 3\); expected \(2, 4\)"):
+        load_scale_state(
+            {"scale_count": 2}, {"noise_log": np.zeros((2, 3))}, np.ones(1), np.ones(1, dtype=bool), spread
+        )
 
 
 def mountain_car(k, kind="noise"):

@@ -121,22 +121,26 @@ class RunningSpread:
         self.count = 0
         self.mean = np.zeros(n)
         self.m2 = np.zeros(n)
-        #: With ``log``, the observations counted themselves (the first :attr:`count` rows), and whether each came
-        #: one step after the one before it in the same episode: for the noise test (:meth:`noise`).
+        #: With ``log``, the observations counted themselves (the first :attr:`count` rows), whether each came
+        #: one step after the one before it in the same episode, and the action and reward of that step (-1 and 0
+        #: for the first of an episode): for the noise test (:meth:`noise`).
         self.obs = np.zeros((limit, n)) if log else None
         self.follows = np.zeros(limit, dtype=bool)
+        self.actions = np.full(limit, -1, dtype=np.int64)
+        self.rewards = np.zeros(limit)
 
     @property
     def full(self) -> bool:
         """True once ``limit`` observations were counted: later ones are not."""
         return self.count >= self.limit
 
-    def add(self, x: Any, start: bool = False) -> bool:
-        """Count the observation ``x`` (if not full), the first of an episode when ``start``; return whether later
-        ones are still counted."""
+    def add(self, x: Any, start: bool = False, action: int = -1, reward: float = 0.0) -> bool:
+        """Count the observation ``x`` (if not full), the first of an episode when ``start``, else the one that
+        ``action`` led to with ``reward``; return whether later ones are still counted."""
         if self.count < self.limit:
             if self.obs is not None:
                 self.obs[self.count], self.follows[self.count] = x, not start
+                self.actions[self.count], self.rewards[self.count] = action, reward
             self.count += 1
             delta = x - self.mean
             self.mean += delta / self.count
@@ -146,7 +150,8 @@ class RunningSpread:
     def noise(self) -> np.ndarray:
         """:func:`avq.agents._noise.noise_dims` of the observations counted (with ``log``)."""
         assert self.obs is not None
-        return noise_dims(self.obs[: self.count], self.follows[: self.count])
+        c = self.count
+        return noise_dims(self.obs[:c], self.follows[:c], self.actions[:c], self.rewards[:c])
 
     def std(self) -> np.ndarray:
         """``(n,)`` the standard deviation of the observations counted (ddof 0; zeros before any)."""
@@ -198,10 +203,13 @@ def refresh_scale(
 def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """What a saved agent keeps of its metric: ``(meta, arrays)``, the scale in force and what
     ``scale="auto"`` counted of the observations (mean and m2 as rows), and the observations the noise test
-    keeps (as rows, with whether each followed the one before it as a last column)."""
+    keeps (as rows, with whether each followed the one before it, the action and the reward as last columns)."""
     arrays = {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])}
     if spread.obs is not None:
-        arrays["noise_log"] = np.column_stack([spread.obs[: spread.count], spread.follows[: spread.count]])
+        c = spread.count
+        arrays["noise_log"] = np.column_stack(
+            [spread.obs[:c], spread.follows[:c], spread.actions[:c], spread.rewards[:c]]
+        )
     return {"scale_count": spread.count}, arrays
 
 
@@ -225,10 +233,12 @@ def load_scale_state(
     spread.count = min(int(meta.get("scale_count", 0)), spread.limit)
     spread.mean[:], spread.m2[:] = rows
     if spread.obs is not None:
-        kept = arrays.get("noise_log", np.zeros((0, n + 1)))
-        if kept.shape != (spread.count, n + 1):
-            raise ValueError(f"array noise_log has shape {kept.shape}; expected ({spread.count}, {n + 1})")
+        kept = arrays.get("noise_log", np.zeros((0, n + 3)))
+        if kept.shape not in ((spread.count, n + 1), (spread.count, n + 3)):  # (n + 1: without actions and rewards)
+            raise ValueError(f"array noise_log has shape {kept.shape}; expected ({spread.count}, {n + 3})")
         spread.obs[: spread.count], spread.follows[: spread.count] = kept[:, :n], kept[:, n] > 0
+        if kept.shape[1] == n + 3:
+            spread.actions[: spread.count], spread.rewards[: spread.count] = kept[:, n + 1], kept[:, n + 2]
     scale[:] = saved
 
 

@@ -308,7 +308,7 @@ class GenericPath(BaseAgent):
         a = int(S[ACTION])
         n = 0
         while n < max_steps:
-            obs, r, terminated, truncated, info = step(a)
+            obs, r, terminated, truncated, info = step(taken := a)
             n += 1
             collision = bool(info.get("collision", False))
             if (
@@ -337,7 +337,7 @@ class GenericPath(BaseAgent):
             if a < ended:
                 a = self._compiled(kernel, obs, int(S[EP_STEPS]) + 1, r, r, collision, terminated, truncated)
                 fb, ib, raw, S = self._fb, self._ib, draws.raw, self._S
-            if count is not None and not count(obs):  # (an observation the kernel took: finite)
+            if count is not None and not count(obs, False, taken, float(r)):  # (an observation the kernel took: finite)
                 count = None
             if a == ended:
                 return n, True

@@ -308,7 +308,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         a = int(S[ACTION])
         n = 0
         while n < max_steps:
-            obs, r, terminated, truncated, info = env_step(a)
+            obs, r, terminated, truncated, info = env_step(taken := a)
             n += 1
             x = self._as_obs(obs, int(S[EP_STEPS]) + 1)
             try:
@@ -338,7 +338,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
                     direct = self._direct = direct_call(kernel, args)
             if a == core.NOT_FINITE:
                 self._refuse_non_finite(obs, r, int(S[EP_STEPS]) + 1)
-            if count is not None and not count(x):
+            if count is not None and not count(x, False, taken, r):
                 count = None
             if r > r_max:
                 r_max = self._r_max = r
