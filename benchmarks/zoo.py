@@ -28,13 +28,15 @@ Every agent learns in 20 chunks of a twentieth of the budget; after each its gre
 Writes ``OUT/zoo.csv`` (``--out``, default ``docs/data``; rows of (task, agent, seed) not run are kept, so agents
 and seeds can be added one at a time) and prints a Markdown table. Seeds 10-19 are held out from all tuning.
 ``--set KEY=VALUE`` changes a parameter of ``avq`` and ``avq-entry``: a variant, written elsewhere than
-``docs/data`` and drawn in no figure.
+``docs/data`` and drawn in no figure. ``--times K`` multiplies every budget by ``K`` (written elsewhere than
+``docs/data``: the rows there are at the zoo's budgets).
 
     python benchmarks/zoo.py --seeds 10-19                      # every agent: about 100 min on 2 cores
     python benchmarks/zoo.py --seeds 10-19 --agents avq,tiles   # without DQN: 5 min
     python benchmarks/zoo.py --quick --out /tmp/zoo             # a check: budgets / 20, seed 0
     python benchmarks/zoo.py --seeds 10-19 --tasks MountainCar-v0,CartPole-v1 --noise 4   # 4 noise dimensions
     python benchmarks/zoo.py --agents avq --set compose_crossings=true --out /tmp/zoo_cc  # a variant of avq's
+    python benchmarks/zoo.py --tasks LunarLander-v3 --agents avq,tiles --times 10 --out /tmp/zoo_x10  # 1 M env steps
 """
 
 from __future__ import annotations
@@ -261,6 +263,7 @@ def main() -> None:
     ap.add_argument("--agents", default=",".join(AGENTS), help=f"comma-separated, of {', '.join(AGENTS)}")
     ap.add_argument("--seeds", default="10-19", help="a range, as 10-19 (the default: held out from tuning)")
     ap.add_argument("--quick", action="store_true", help="budgets / 20, a check")
+    ap.add_argument("--times", type=float, default=1.0, help="budgets x TIMES (written elsewhere than docs/data)")
     ap.add_argument("--noise", type=int, default=0, help="noise dimensions appended to every task (default 0)")
     ap.add_argument(
         "--plot", action="store_true", help="only the figure, from OUT/zoo.csv: OUT/../figures/zoo.png (zoo_noiseK.png)"
@@ -280,6 +283,10 @@ def main() -> None:
     params = variant(ap, args.set, names, Path(args.out), tasks[0])
     if args.quick and Path(args.out).resolve() == DOCS_DATA:
         ap.error("--quick is a check: write it elsewhere than docs/data (e.g. --out /tmp/zoo)")
+    if not args.times > 0:
+        ap.error(f"--times {args.times}: give a multiple of the zoo's budgets above 0, as 10")
+    if args.times != 1 and Path(args.out).resolve() == DOCS_DATA:
+        ap.error("--times changes the budgets: write it elsewhere than docs/data (e.g. --out /tmp/zoo_x10)")
     if args.noise < 0:
         ap.error(f"--noise {args.noise}: give a count of noise dimensions, 0 or more")
     figure = Path(args.out).resolve().parent / "figures" / f"zoo{f'_noise{args.noise}' if args.noise else ''}.png"
@@ -289,7 +296,7 @@ def main() -> None:
         return plot(read_csv(Path(args.out) / "zoo.csv"), figure, args.noise)
     if "dqn" in names:
         require_sb3()
-    budgets = {t: ZOO_DQN[t]["n_timesteps"] // (20 if args.quick else 1) for t in tasks}
+    budgets = {t: int(ZOO_DQN[t]["n_timesteps"] * args.times) // (20 if args.quick else 1) for t in tasks}
     jobs = [
         delayed(run)(n, t, s, budgets[t], args.noise, params)
         for t in tasks

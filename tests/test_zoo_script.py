@@ -99,6 +99,26 @@ def test_the_script_writes_a_row_per_run_and_refuses_unknown_names(tmp_path):
     assert bad.returncode == 2 and "--agents ppo: choose from avq, avq-entry" in bad.stderr
 
 
+def test_times_multiplies_the_budgets_and_keeps_docs_data_at_the_zoos(tmp_path):
+    script = str(ROOT / "benchmarks" / "zoo.py")
+    cmd = [sys.executable, script, "--quick", "--tasks", "MountainCar-v0", "--agents", "random", "--seeds", "0-0"]
+    out = subprocess.run(
+        [*cmd, "--times", "2.5", "--jobs", "1", "--out", str(tmp_path)], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    rows = list(csv.DictReader((tmp_path / "zoo.csv").open()))
+    assert [(r["budget"], r["env_steps"]) for r in rows] == [("15000", "15000")]  # (120,000 x 2.5 / 20)
+    for times, message in [("0", "--times 0.0: give a multiple"), ("-1", "--times -1.0: give a multiple")]:
+        bad = subprocess.run([*cmd, "--times", times, "--out", str(tmp_path)], capture_output=True, text=True)
+        assert bad.returncode == 2 and message in bad.stderr
+    before = (ROOT / "docs" / "data" / "zoo.csv").read_bytes()
+    bad = subprocess.run(
+        [sys.executable, script, "--times", "10", "--agents", "random"], capture_output=True, text=True, cwd=ROOT
+    )
+    assert bad.returncode == 2 and "--times changes the budgets: write it elsewhere than docs/data" in bad.stderr
+    assert (ROOT / "docs" / "data" / "zoo.csv").read_bytes() == before
+
+
 def test_plot_draws_the_csv_and_says_what_to_run_without_one(tmp_path):
     script, data = str(ROOT / "benchmarks" / "zoo.py"), tmp_path / "data"
     rows = [
