@@ -102,6 +102,19 @@ def test_a_dimension_drawn_afresh_that_sets_the_reward_is_kept_and_noise_beside_
     assert noise_dims(obs, follows, actions, shuffled).tolist() == [False, True, True]
 
 
+def test_a_dimension_whose_value_after_the_step_sets_the_reward_is_kept():
+    # A coin drawn afresh at every step (dimension 1) pays +1 when it lands on 1: the reward comes with the
+    # observation the step led to, so the coin's previous value explains none of it and its new value all.
+    rng = np.random.default_rng(0)
+    t = 1000
+    coin = rng.integers(0, 2, t).astype(float)
+    obs = np.column_stack([np.cumsum(rng.uniform(-0.01, 0.01, t)), coin])
+    follows, actions = np.r_[False, np.ones(t - 1, dtype=bool)], np.r_[-1, rng.integers(0, 2, t - 1)]
+    assert noise_dims(obs, follows).tolist() == [False, True]
+    assert noise_dims(obs, follows, actions, np.r_[0.0, coin[1:]]).tolist() == [False, False]
+    assert noise_dims(obs, follows, actions, rng.permutation(np.r_[0.0, coin[1:]])).tolist() == [False, True]
+
+
 def test_a_dimension_drawn_afresh_that_moves_the_next_state_is_kept():
     # A gust drawn afresh each step (dimension 1) pushes the position (dimension 0) along with the action; the
     # rewards are constant, so only the next position tells. Moved by a tenth of its own spread, it explains far

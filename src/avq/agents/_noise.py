@@ -14,7 +14,9 @@ moves the next state. So one that is unpredictable is noise only if it also expl
 step beyond the rest of the observation and the action: where the actions and rewards are given, a dimension
 whose products with the action (one column per action) explain at least :data:`RELEVANT_R2` of the variance that
 the previous observation without it and the action leave in the reward, or in the next value of a dimension that
-is not noise, is kept (:func:`matters`). Appended noise explains about ``actions / pairs`` of either by chance.
+is not noise, is kept (:func:`matters`); so is one whose value after the step explains that share of the reward
+(a leg that touches the ground: LunarLander-v3's contacts are rare in the first steps of some runs, and
+unpredictable then). Appended noise explains about ``actions / pairs`` of either by chance.
 
 The agents of :class:`avq.agents._spaces.ScaledMetric` with ``ignore_noise`` keep the first ``scale_warmup``
 observations (:class:`avq.agents._spaces.RunningSpread` with ``log``) and, once they have them all, give the noise dimensions an infinite scale
@@ -75,16 +77,19 @@ def matters(
 ) -> np.ndarray:
     """Which of the dimensions ``noise`` explain, with the action, at least :data:`RELEVANT_R2` of what the previous
     observation without them and the action leave unexplained of the reward or of the next value of a dimension
-    that is not noise (the pairs ``obs[after - 1] -> obs[after]``; ``actions`` and ``rewards`` of those steps)."""
+    that is not noise, or whose value after the step explains that share of the reward (the pairs
+    ``obs[after - 1] -> obs[after]``; ``actions`` and ``rewards`` of those steps)."""
     _, which = np.unique(actions, return_inverse=True)
     one_hot = np.eye(int(which.max()) + 1)[which]
     before = obs[after - 1]
     target = np.column_stack([rewards, obs[after][:, ~noise]])
     kept = np.zeros(len(noise), dtype=bool)
+    base = np.column_stack([one_hot, np.delete(before, np.flatnonzero(noise), axis=1)])
+    left = _left(base, target)
     for j in np.flatnonzero(noise):
-        base = np.column_stack([one_hot, np.delete(before, np.flatnonzero(noise), axis=1)])
-        left = _left(base, target)
         with_j = _left(np.column_stack([base, one_hot * before[:, j : j + 1]]), target)
+        # (the reward may also depend on the value the step led to: a leg that touches the ground)
+        with_j[0] = min(with_j[0], _left(np.column_stack([base, obs[after, j]]), target[:, :1])[0])
         share = np.where(left > 1e-12, 1.0 - with_j / np.where(left > 1e-12, left, 1.0), 0.0)
         kept[j] = share.max() >= RELEVANT_R2
     return kept
