@@ -351,11 +351,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        noise = np.isinf(self._scale).sum()
         if self._refresh_metric(self._spread, self._ag.inv_scale):
             # scale="auto" or the noise test: the metric changed, so the cells of the remembered transitions may have; the
-            # model follows them (the codebook keeps its vectors in observation units), composing held crossings on noise.
-            memory.relocate(self._ag, self._model.a, -1, -1, np.isinf(self._scale).sum() > noise)
+            # model follows them (the codebook keeps its vectors in observation units), composing held crossings once
+            # the noise test has left dimensions out (the metric changes no more after it).
+            memory.relocate(self._ag, self._model.a, -1, -1, bool(np.isinf(self._scale).any()))
             self._ag.S[GEOM] += 1
         if self.v_opt == "auto":
             self._to_go_max = max(self._to_go_max, best_return_to_go(self._ep_rewards, self.gamma))
