@@ -12,7 +12,7 @@ from avq.agents.base import BaseAgent, NotFiniteError, load
 from avq.agents.baselines.grid import GridSarsa
 from avq.agents.baselines.tabular import TabularSarsa
 from avq.agents.baselines.tiles import TileSarsa
-from avq.agents.callbacks import BaseCallback, CallbackList, CheckpointCallback, ProgressBarCallback
+from avq.agents.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback, ProgressBarCallback
 from avq.agents.plan.agent import PlanningAVQ
 from avq.agents.plan.sweeping import PrioritizedSweeping
 from avq.agents.registry import AGENTS, make_agent
@@ -36,5 +36,6 @@ __all__ = [
     "BaseCallback",
     "CallbackList",
     "CheckpointCallback",
+    "EvalCallback",
     "ProgressBarCallback",
 ]

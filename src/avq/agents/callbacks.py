@@ -6,6 +6,8 @@ As in Stable-Baselines3, everything that watches a run is a callback handed to
 - :class:`CheckpointCallback` saves the agent and brings ``progress.csv`` up to date every
   ``every`` episodes (what ``avq train`` uses to make a run resumable);
 - :class:`ProgressBarCallback` draws a tqdm bar of the agent's episodes or steps;
+- :class:`EvalCallback` runs the greedy policy on an environment of its own every ``every``
+  episodes and keeps the best agent seen (Stable-Baselines3's ``EvalCallback``);
 - a plain function ``callback(agent, record)`` is wrapped in :class:`FunctionCallback`;
 - :class:`CallbackList` runs several in order.
 
@@ -22,17 +24,20 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from avq._io import ProgressLog
+from avq._io import ProgressLog, atomic_write_bytes, make_dirs
 from avq._validate import check_int
 from avq.agents._history import HISTORY_FIELDS
 
 if TYPE_CHECKING:
+    import gymnasium as gym
+
     from avq.agents.base import BaseAgent
 
 __all__ = [
     "BaseCallback",
     "CallbackList",
     "CheckpointCallback",
+    "EvalCallback",
     "FunctionCallback",
     "ProgressBarCallback",
     "as_callback",
@@ -110,6 +115,82 @@ class CheckpointCallback(BaseCallback):
 
     def on_learn_end(self, agent: BaseAgent) -> None:
         self.log.sync(agent.history_)  # (the episodes after the last checkpoint too; a resume drops them again)
+
+
+class EvalCallback(BaseCallback):
+    """Every ``every`` episodes (counted from the agent's first), the greedy policy run for ``n_eval_episodes`` on
+    ``eval_env`` (:func:`avq.evaluation.evaluate_policy`, its first reset seeded with ``seed``, so every evaluation
+    starts from the same states) and its figures kept in :attr:`evaluations_`; with ``directory``, the rows written
+    to ``directory/evaluations.csv`` and the agent saved to ``directory/best.zip`` whenever its mean return is above
+    every one before (both files written whole, so that a crash leaves a complete one). Stable-Baselines3's
+    ``EvalCallback``, counted in episodes as :class:`CheckpointCallback` is: a greedy policy can be far better at one
+    check than at the end of the run (docs: results/dimensions.md, RL Zoo's budgets), and ``best.zip`` keeps it.
+
+    Args:
+        eval_env: An environment like the one the agent learns on, not the same object (its spaces are checked
+            against the agent's when ``learn`` starts).
+        every: Episodes between evaluations (>= 1).
+        n_eval_episodes: Episodes of each evaluation (>= 1).
+        directory: Where the files go (made if missing; a file there is refused); None: no files.
+        seed: The seed of each evaluation's first reset.
+
+    Attributes:
+        evaluations_: One dict per evaluation: ``episode``, ``timesteps``, ``mean_return``, ``std_return``,
+            ``success_rate`` (None where the task defines no success).
+        best_mean_return_: The best ``mean_return`` so far (``-inf`` before any evaluation).
+    """
+
+    def __init__(
+        self,
+        eval_env: gym.Env,
+        every: int,
+        n_eval_episodes: int = 10,
+        directory: str | os.PathLike | None = None,
+        seed: int = 0,
+    ) -> None:
+        if not (hasattr(eval_env, "reset") and hasattr(eval_env, "step") and hasattr(eval_env, "observation_space")):
+            raise TypeError(f"eval_env must be a gymnasium environment, not {type(eval_env).__name__}; make one with "
+                            "gymnasium.make(...) as for the agent")  # fmt: skip
+        self.eval_env = eval_env
+        self.every = check_int("eval every", every, 1)
+        self.n_eval_episodes = check_int("n_eval_episodes", n_eval_episodes, 1)
+        self.seed = check_int("eval seed", seed, 0)
+        self.directory = None if directory is None else Path(directory)
+        if self.directory is not None and self.directory.exists() and not self.directory.is_dir():
+            raise ValueError(f"eval directory {self.directory} is a file; give a directory")
+        self.evaluations_: list[Record] = []
+        self.best_mean_return_ = float("-inf")
+
+    def on_learn_start(self, agent: BaseAgent, total_episodes: int | None, total_timesteps: int | None) -> None:
+        if self.eval_env is agent.env:
+            raise ValueError("eval_env is the environment the agent learns on; give it one of its own (an evaluation "
+                             "resets it, which would cut the episode being learned)")  # fmt: skip
+        from avq.agents.save_util import check_env_fits, env_signature
+
+        check_env_fits(env_signature(agent.env), self.eval_env, "EvalCallback")
+
+    def episodes_to_next_call(self, agent: BaseAgent) -> int:
+        return self.every - agent.num_episodes % self.every
+
+    def on_episode_end(self, agent: BaseAgent, record: Record) -> None:
+        if record["episode"] != agent.num_episodes or agent.in_episode or agent.num_episodes % self.every:
+            return
+        from avq.evaluation import evaluate_policy
+
+        ev = evaluate_policy(agent, self.eval_env, self.n_eval_episodes, seed=self.seed)
+        row = dict(episode=agent.num_episodes, timesteps=agent.num_timesteps, mean_return=ev["mean_return"],
+                   std_return=ev["std_return"], success_rate=ev["success_rate"])  # fmt: skip
+        self.evaluations_.append(row)
+        best = row["mean_return"] > self.best_mean_return_
+        self.best_mean_return_ = max(self.best_mean_return_, row["mean_return"])
+        if self.directory is not None:
+            make_dirs(self.directory)
+            columns = list(row)
+            lines = [",".join(columns)] + [",".join("" if r[c] is None else str(r[c]) for c in columns)
+                                           for r in self.evaluations_]  # fmt: skip
+            atomic_write_bytes(self.directory / "evaluations.csv", ("\n".join(lines) + "\n").encode())
+            if best:
+                agent.save(self.directory / "best.zip")
 
 
 class ProgressBarCallback(BaseCallback):
