@@ -1,4 +1,5 @@
-"""Dimensions of an observation that are noise: no decision can follow them, so a metric should not count them.
+"""Dimensions of an observation that do not matter: noise, and dimensions that drift on their own. No decision can
+follow them, so a metric should not count them.
 
 A dimension is *noise* when its next value is not predictable from the observation before it: a linear
 prediction of ``x[t + 1, k]`` from the whole vector ``x[t]`` (with an intercept, by least squares over the pairs
@@ -6,8 +7,7 @@ of consecutive observations of one episode) explains less than :data:`NOISE_R2` 
 afresh at every step (``avq.envs.IrrelevantDims(kind="noise")``) explains about ``(n + 1) / pairs`` of it by
 chance (1% over 1,000 pairs of 12 dimensions); the dimensions of the tasks measured explain at least 45%, down to
 the fast-spinning links of Acrobot-v1 and the legs' contacts of LunarLander-v3 (docs/results/dimensions.md,
-Irrelevant dimensions). A dimension that drifts slowly without mattering (``kind="walk"``) is predictable and is
-not found here.
+Irrelevant dimensions).
 
 A dimension drawn afresh at every step may still matter: a context that sets which action pays, or a gust that
 moves the next state. So one that is unpredictable is noise only if it also explains nothing of what follows the
@@ -18,16 +18,32 @@ is not noise, is kept (:func:`matters`); so is one whose value after the step ex
 (a leg that touches the ground: LunarLander-v3's contacts are rare in the first steps of some runs, and
 unpredictable then). Appended noise explains about ``actions / pairs`` of either by chance.
 
+A dimension that *drifts* (a slow random walk, ``kind="walk"``) is predictable, but its *change* is not
+(:func:`drift_dims`). Whether it matters cannot be told from the first steps, over which it correlates by chance
+with whatever else changes slowly; it can from a long log (:func:`drift_matters`, after :data:`JUDGE_AFTER`
+observations). So a drifting dimension is left out with the noise, and counts again if it is then found to matter
+(a wind that moves the position, a target whose distance is the reward).
+
 The agents of :class:`avq.agents._spaces.ScaledMetric` with ``ignore_noise`` keep the first ``scale_warmup``
-observations (:class:`avq.agents._spaces.RunningSpread` with ``log``) and, once they have them all, give the noise dimensions an infinite scale
-(weight 0 in the distance).
+observations (:class:`avq.agents._warmup.RunningSpread` with ``log``) and, once they have them all, give the noise
+and drifting dimensions an infinite scale (weight 0 in the distance); the log goes on while a drifting dimension
+waits to be judged, which gives it back its scale if it matters.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["NOISE_R2", "RELEVANT_R2", "noise_dims", "matters"]
+__all__ = [
+    "NOISE_R2",
+    "RELEVANT_R2",
+    "JUDGE_AFTER",
+    "DRIFT_RELEVANT_R2",
+    "noise_dims",
+    "matters",
+    "drift_dims",
+    "drift_matters",
+]
 
 #: The share of a dimension's variance below which a linear prediction from the previous observation marks it as
 #: noise (:func:`noise_dims`).
@@ -35,6 +51,12 @@ NOISE_R2 = 0.1
 #: The share of what is left unexplained of the reward or of another dimension's next value that an unpredictable
 #: dimension must explain, with the action, to be kept (:func:`matters`).
 RELEVANT_R2 = 0.05
+#: A drifting dimension (:func:`drift_dims`) is judged (:func:`drift_matters`) once this many observations are logged
+#: (or the noise test's, if more).
+JUDGE_AFTER = 30_000
+#: The share of what is left unexplained of the reward or of another dimension's next value that a drifting
+#: dimension must explain, judged later, to count in the metric again (:func:`drift_matters`).
+DRIFT_RELEVANT_R2 = 0.1
 
 
 def noise_dims(
@@ -92,4 +114,92 @@ def matters(
         with_j[0] = min(with_j[0], _left(np.column_stack([base, obs[after, j]]), target[:, :1])[0])
         share = np.where(left > 1e-12, 1.0 - with_j / np.where(left > 1e-12, left, 1.0), 0.0)
         kept[j] = share.max() >= RELEVANT_R2
+    return kept
+
+
+def _standard(x: np.ndarray) -> np.ndarray:
+    """The columns of ``x`` less their means, over their standard deviations (a constant column: 0)."""
+    sd = x.std(axis=0)
+    return (x - x.mean(axis=0)) / np.where(sd > 0, sd, 1.0)
+
+
+def _quadratic(z: np.ndarray, one_hot: np.ndarray) -> np.ndarray:
+    """The columns of a quadratic fit on the standardized ``z`` and the action: one per action, ``z``, every
+    product ``z_i z_k`` (``i <= k``), and ``z`` times each action but the first."""
+    i, k = np.triu_indices(z.shape[1])
+    return np.column_stack([one_hot, z, z[:, i] * z[:, k], (one_hot[:, 1:, None] * z[:, None, :]).reshape(len(z), -1)])
+
+
+def _pairs(follows: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The pairs within an episode whose action is known (``after``), and a column per action; None without."""
+    after = np.flatnonzero(np.asarray(follows, dtype=bool)[1:]) + 1
+    after = after[np.asarray(actions)[after] >= 0]
+    if after.size == 0:
+        return None
+    _, which = np.unique(np.asarray(actions)[after], return_inverse=True)
+    return after, np.eye(int(which.max()) + 1)[which]
+
+
+def drift_dims(obs: np.ndarray, follows: np.ndarray, actions: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """Which dimensions of ``obs``, besides ``noise``, *drift*: their change from one step to the next is not
+    predictable, where their next value is (a slow random walk, ``avq.envs.IrrelevantDims(kind="walk")``).
+
+    The change of every dimension is fitted by least squares on :func:`_quadratic` columns of the previous
+    observation and the action (a linear fit would not do: a link's cosine changes with its sine times its speed);
+    a dimension whose change varies, and is not 0 in most steps, and of which the fit explains less than
+    :data:`NOISE_R2`, adjusted for the number of columns (``1 - (1 - R^2) (pairs - 1) / (pairs - columns)``),
+    drifts. (A dimension that keeps its value in most steps changes in jumps: an event such as a leg's contact with
+    the ground, which a quadratic fit does not predict but which follows the state.) Every dimension of CartPole-v1,
+    MountainCar-v0 and Acrobot-v1 is explained 0.9 or more, LunarLander-v3's at least 0.3 but for its legs'
+    contacts (events), an appended walk at most 0.08 (docs/results/dimensions.md, Walks). Nothing drifts without actions (a log
+    without them), or with fewer than four pairs a column.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    n = obs.shape[1]
+    found = np.zeros(n, dtype=bool)
+    pairs = _pairs(follows, actions)
+    if pairs is None:
+        return found
+    after, one_hot = pairs
+    columns = _quadratic(_standard(obs[after - 1]), one_hot)
+    if after.size < 4 * columns.shape[1]:
+        return found
+    change = obs[after] - obs[after - 1]
+    variance = change.var(axis=0)
+    varied = variance > 1e-12 * np.maximum(1.0, np.abs(obs[after]).max(axis=0)) ** 2
+    varied &= (change != 0).mean(axis=0) > 0.5  # (a dimension that mostly keeps its value changes in jumps: events)
+    explained = 1.0 - _left(columns, change) / np.where(varied, variance, 1.0)
+    adjusted = 1.0 - (1.0 - explained) * (after.size - 1) / (after.size - columns.shape[1])
+    return varied & (adjusted < NOISE_R2) & ~np.asarray(noise, dtype=bool)
+
+
+def drift_matters(
+    obs: np.ndarray, follows: np.ndarray, actions: np.ndarray, rewards: np.ndarray, drift: np.ndarray
+) -> np.ndarray:
+    """Which of the dimensions ``drift`` explain at least :data:`DRIFT_RELEVANT_R2` of what a quadratic fit on the
+    other dimensions and the action (:func:`_quadratic`) leaves unexplained of the reward or of the next value of
+    another dimension, with columns of their own: their products with each action, with every other dimension
+    and with themselves (a distance to a target that drifts), and for the reward their value after the step.
+
+    Made on a long log only (:data:`JUDGE_AFTER` observations): a drifting dimension moves slowly, so over the few episodes of
+    the first steps it correlates by chance with whatever else changes slowly (a walk explains up to 0.7 of
+    another dimension at 1,000 steps, 0.05 at 30,000, where a drifting target and a wind explain 0.4 or more and
+    LunarLander's contacts 0.13; docs/results/dimensions.md, Walks)."""
+    obs = np.asarray(obs, dtype=np.float64)
+    drift = np.asarray(drift, dtype=bool)
+    kept = np.zeros(len(drift), dtype=bool)
+    pairs = _pairs(follows, actions)
+    if pairs is None or not drift.any():
+        return kept
+    after, one_hot = pairs
+    rest = _standard(obs[after - 1][:, ~drift])
+    base = _quadratic(rest, one_hot)
+    target = np.column_stack([np.asarray(rewards, dtype=np.float64)[after], obs[after][:, ~drift]])
+    left = _left(base, target)
+    for j in np.flatnonzero(drift):
+        own = _standard(obs[after - 1, j : j + 1])
+        with_j = _left(np.column_stack([base, one_hot * obs[after - 1, j : j + 1], own * rest, own**2]), target)
+        with_j[0] = min(with_j[0], _left(np.column_stack([base, obs[after, j]]), target[:, :1])[0])
+        share = np.where(left > 1e-12, 1.0 - with_j / np.where(left > 1e-12, left, 1.0), 0.0)
+        kept[j] = share.max() >= DRIFT_RELEVANT_R2
     return kept

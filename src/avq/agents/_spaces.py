@@ -11,7 +11,8 @@ import numpy as np
 from gymnasium import spaces
 
 from avq._validate import check_bool, check_int
-from avq.agents._noise import noise_dims
+from avq.agents._noise import JUDGE_AFTER
+from avq.agents._warmup import RunningSpread, load_scale_state, scale_state
 from avq.agents.base import BaseAgent
 
 __all__ = [
@@ -21,7 +22,6 @@ __all__ = [
     "resolve_bounds",
     "resolve_scale",
     "auto_scale",
-    "RunningSpread",
     "AUTO_SCALE_STDS",
     "per_dimension",
     "normalize_obs_bounds",
@@ -106,58 +106,6 @@ def auto_scale(
     return scale, estimated
 
 
-class RunningSpread:
-    """The mean and standard deviation per dimension of the first ``limit`` observations, kept as they come
-    (Welford's algorithm: the same numbers as ``numpy.std`` up to rounding).
-
-    Attributes:
-        count: The observations counted so far (at most ``limit``).
-        mean: ``(n,)`` their mean.
-        m2: ``(n,)`` the sum of squared deviations from the mean.
-    """
-
-    def __init__(self, n: int, limit: int, log: bool = False) -> None:
-        self.limit = limit
-        self.count = 0
-        self.mean = np.zeros(n)
-        self.m2 = np.zeros(n)
-        #: With ``log``, the observations counted themselves (the first :attr:`count` rows), whether each came
-        #: one step after the one before it in the same episode, and the action and reward of that step (-1 and 0
-        #: for the first of an episode): for the noise test (:meth:`noise`).
-        self.obs = np.zeros((limit, n)) if log else None
-        self.follows = np.zeros(limit, dtype=bool)
-        self.actions = np.full(limit, -1, dtype=np.int64)
-        self.rewards = np.zeros(limit)
-
-    @property
-    def full(self) -> bool:
-        """True once ``limit`` observations were counted: later ones are not."""
-        return self.count >= self.limit
-
-    def add(self, x: Any, start: bool = False, action: int = -1, reward: float = 0.0) -> bool:
-        """Count the observation ``x`` (if not full), the first of an episode when ``start``, else the one that
-        ``action`` led to with ``reward``; return whether later ones are still counted."""
-        if self.count < self.limit:
-            if self.obs is not None:
-                self.obs[self.count], self.follows[self.count] = x, not start
-                self.actions[self.count], self.rewards[self.count] = action, reward
-            self.count += 1
-            delta = x - self.mean
-            self.mean += delta / self.count
-            self.m2 += delta * (x - self.mean)
-        return self.count < self.limit
-
-    def noise(self) -> np.ndarray:
-        """:func:`avq.agents._noise.noise_dims` of the observations counted (with ``log``)."""
-        assert self.obs is not None
-        c = self.count
-        return noise_dims(self.obs[:c], self.follows[:c], self.actions[:c], self.rewards[:c])
-
-    def std(self) -> np.ndarray:
-        """``(n,)`` the standard deviation of the observations counted (ddof 0; zeros before any)."""
-        return np.sqrt(self.m2 / max(self.count, 1))
-
-
 def scale_setting(
     space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None, scale_factor: Any = 1.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -198,48 +146,6 @@ def refresh_scale(
     scale[:] = new
     inv_scale[:] = 1.0 / new
     return True
-
-
-def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """What a saved agent keeps of its metric: ``(meta, arrays)``, the scale in force and what
-    ``scale="auto"`` counted of the observations (mean and m2 as rows), and the observations the noise test
-    keeps (as rows, with whether each followed the one before it, the action and the reward as last columns)."""
-    arrays = {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])}
-    if spread.obs is not None:
-        c = spread.count
-        arrays["noise_log"] = np.column_stack(
-            [spread.obs[:c], spread.follows[:c], spread.actions[:c], spread.rewards[:c]]
-        )
-    return {"scale_count": spread.count}, arrays
-
-
-def load_scale_state(
-    meta: dict[str, Any], arrays: dict[str, np.ndarray], scale: np.ndarray, estimated: np.ndarray, spread: RunningSpread
-) -> None:
-    """Restore what :func:`scale_state` saved into ``scale`` and ``spread`` (in place). A file from before
-    ``scale="auto"`` keeps the scale of the parameters.
-
-    Raises:
-        ValueError: a saved scale that does not fit the parameters' (shape, sign, or a dimension that is
-            not estimated but differs), or a spread of the wrong shape.
-    """
-    n = scale.shape[0]
-    saved = arrays.get("scale", scale)
-    if saved.shape != (n,) or not (saved > 0).all() or not np.array_equal(saved[~estimated], scale[~estimated]):
-        raise ValueError(f"array scale {saved.tolist()} does not fit the parameters' scale {scale.tolist()}")
-    rows = arrays.get("scale_spread", np.zeros((2, n)))
-    if rows.shape != (2, n):
-        raise ValueError(f"array scale_spread has shape {rows.shape}; expected (2, {n})")
-    spread.count = min(int(meta.get("scale_count", 0)), spread.limit)
-    spread.mean[:], spread.m2[:] = rows
-    if spread.obs is not None:
-        kept = arrays.get("noise_log", np.zeros((0, n + 3)))
-        if kept.shape not in ((spread.count, n + 1), (spread.count, n + 3)):  # (n + 1: without actions and rewards)
-            raise ValueError(f"array noise_log has shape {kept.shape}; expected ({spread.count}, {n + 3})")
-        spread.obs[: spread.count], spread.follows[: spread.count] = kept[:, :n], kept[:, n] > 0
-        if kept.shape[1] == n + 3:
-            spread.actions[: spread.count], spread.rewards[: spread.count] = kept[:, n + 1], kept[:, n + 2]
-    scale[:] = saved
 
 
 def resolve_scale(space: spaces.Space, scale: Any, obs_bounds: Sequence[Any] | None) -> np.ndarray:
@@ -391,6 +297,10 @@ class ScaledMetric(BaseAgent):
         #: first scale_warmup observations are counted; _noise_tested once it is.
         self._tests_noise = self.ignore_noise and isinstance(self.scale, str)
         self._noise_tested = False
+        #: The dimensions the noise test found drifting, left out until the log is long enough to judge them
+        #: (avq.agents._noise.drift_matters), and the scale each had then.
+        self._drifting = np.zeros(len(self._scale), dtype=bool)
+        self._held = np.zeros(len(self._scale))
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete(type(self).__name__, obs_space, act_space, "there is nothing to quantize")
@@ -407,7 +317,7 @@ class ScaledMetric(BaseAgent):
     def _learns_metric(self) -> bool:
         """Whether the metric may still change at the end of an episode (``scale="auto"``'s estimates or the
         noise test): the fused loops, which count no observations, are then not used."""
-        return bool(self._estimated.any()) or (self._tests_noise and not self._noise_tested)
+        return bool(self._estimated.any() or self._drifting.any()) or (self._tests_noise and not self._noise_tested)
 
     def _new_spread(self) -> RunningSpread:
         """The observations to count for ``scale="auto"`` and the noise test (none when neither needs them)."""
@@ -425,9 +335,18 @@ class ScaledMetric(BaseAgent):
         if spread.obs is not None and not self._noise_tested and spread.full:
             self._noise_tested = True
             found = spread.noise()
-            if found.any():
-                self._scale[found], inv_scale[found] = np.inf, 0.0
+            drift = spread.drift(found)
+            if drift.any():  # (left out now, judged once the log holds JUDGE_AFTER observations)
+                self._drifting, self._held = drift, np.where(drift, self._scale, 0.0)
+                spread.extend_log(max(JUDGE_AFTER, spread.limit))
+            if (found | drift).any():
+                self._scale[found | drift], inv_scale[found | drift] = np.inf, 0.0
                 changed = True
+        elif self._drifting.any() and spread.log_full:
+            back = spread.drift_matters(self._drifting)
+            self._scale[back], inv_scale[back] = self._held[back], 1.0 / self._held[back]
+            self._drifting[:] = False
+            changed = changed or bool(back.any())
         return changed
 
     def _metric_state(self, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -435,6 +354,7 @@ class ScaledMetric(BaseAgent):
         noise = np.isinf(self._scale)
         meta, arrays = scale_state(np.where(noise, 1.0, self._scale), spread)  # (a model file holds finite numbers)
         arrays["noise_dims"] = noise.astype(np.int8)
+        arrays["drift_dims"], arrays["drift_scale"] = self._drifting.astype(np.int8), self._held.copy()
         return dict(meta, noise_tested=self._noise_tested), arrays
 
     def _load_metric_state(self, meta: dict[str, Any], arrays: dict[str, np.ndarray], spread: RunningSpread) -> None:
@@ -445,3 +365,8 @@ class ScaledMetric(BaseAgent):
         load_scale_state(meta, arrays, self._scale, self._estimated | (noise > 0), spread)
         self._scale[noise > 0] = np.inf
         self._noise_tested = bool(meta.get("noise_tested", False))
+        drift = arrays.get("drift_dims", np.zeros(len(self._scale), dtype=np.int8))
+        held = arrays.get("drift_scale", np.zeros(len(self._scale)))
+        if drift.shape != self._scale.shape or held.shape != self._scale.shape or ((drift > 0) & ~(noise > 0)).any():
+            raise ValueError(f"arrays drift_dims {drift.tolist()} and drift_scale do not fit the noise dimensions")
+        self._drifting, self._held = drift > 0, held.astype(np.float64)

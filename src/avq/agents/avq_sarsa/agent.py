@@ -125,8 +125,9 @@ class AVQSarsa(ScaledMetric, SarsaSettings, GenericPath):
         obs_bounds: One ``(low, high)`` per dimension (None keeps the space's) from which the
             scale ``high - low`` is taken, with ``scale="auto"`` or None.
         ignore_noise: With ``scale="auto"`` or ``"spread"``: once ``scale_warmup`` observations are counted, a
-            dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``)
-            gets an infinite scale, so the distance and the cells ignore it.
+            dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``),
+            or whose change it does not (a slow drift), gets an infinite scale, so the distance and the cells ignore
+            it; a drifting one gets its scale back if, after 30,000 observations, it is found to matter.
         max_repeat: Beyond the paper: a decision ends after at most this many primitive steps,
             even in the same cell (>= 1; None, the paper: it is repeated until the cell changes).
             It is then learned like a decision that ended in another cell: the Sarsa(λ) update of

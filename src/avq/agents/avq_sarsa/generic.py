@@ -21,7 +21,7 @@ from numba.core.errors import TypingError
 
 from avq._numba import borrowed, direct_call
 from avq._random import DRAWS_PER_DECISION
-from avq.agents._spaces import RunningSpread
+from avq.agents._warmup import RunningSpread
 from avq.agents.avq_sarsa.kernels import (
     ACTION,
     EP_STEPS,
@@ -304,7 +304,7 @@ class GenericPath(BaseAgent):
         ended, ndarray = ENDED, np.ndarray
         # (the compiled function for the types of the last step that went through the dispatcher)
         direct, obs_dtype, obs_shape, r_type = self._direct
-        count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
+        count = None if self._spread.done else self._spread.add  # (during the warm-up, and its log)
         a = int(S[ACTION])
         n = 0
         while n < max_steps:

@@ -100,8 +100,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             task whose decisions depend more on some dimensions than on others (Acrobot's velocities).
         obs_bounds: Instead of ``scale``: ``(low, high)`` per dimension (None keeps the space's).
         ignore_noise: With ``scale="auto"`` or ``"spread"``: once ``scale_warmup`` observations are counted, a
-            dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``)
-            gets an infinite scale, so the distance and the cells ignore it.
+            dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``),
+            or whose change it does not (a slow drift), gets an infinite scale, so the distance and the cells ignore
+            it; a drifting one gets its scale back if, after 30,000 observations, it is found to matter.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its cell,
             at an observation farther than ``d_min`` from every vector, ends there, and that observation becomes a
@@ -302,7 +303,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         # r a float; an x that is not a writable C-contiguous array goes through the dispatcher.
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
-        count = None if self._spread.full else self._spread.add  # (scale="auto": during its warm-up)
+        count = None if self._spread.done else self._spread.add  # (during the warm-up, and its log)
         r_max, r_min = self._r_max, self._r_min
         keep = self._ep_rewards.append if self.v_opt == "auto" else None  # (only "auto" reads them)
         a = int(S[ACTION])
