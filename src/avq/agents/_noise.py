@@ -149,10 +149,10 @@ def drift_dims(obs: np.ndarray, follows: np.ndarray, actions: np.ndarray, noise:
     a dimension whose change varies, and is not 0 in most steps, and of which the fit explains less than
     :data:`NOISE_R2`, adjusted for the number of columns (``1 - (1 - R^2) (pairs - 1) / (pairs - columns)``),
     drifts. (A dimension that keeps its value in most steps changes in jumps: an event such as a leg's contact with
-    the ground, which a quadratic fit does not predict but which follows the state.) Every dimension of CartPole-v1,
-    MountainCar-v0 and Acrobot-v1 is explained 0.9 or more, LunarLander-v3's at least 0.3 but for its legs'
-    contacts (events), an appended walk at most 0.08 (docs/results/dimensions.md, Walks). Nothing drifts without actions (a log
-    without them), or with fewer than four pairs a column.
+    the ground, which a quadratic fit does not predict but which follows the state.) Every dimension of
+    CartPole-v1, MountainCar-v0 and Acrobot-v1 is explained 0.9 or more, LunarLander-v3's at least 0.3 but for its
+    legs' contacts (events), an appended walk at most 0.08 (docs/results/dimensions.md, Walks). Nothing drifts
+    without actions (a log without them), or with fewer than four pairs a column.
     """
     obs = np.asarray(obs, dtype=np.float64)
     n = obs.shape[1]
@@ -181,9 +181,9 @@ def drift_matters(
     another dimension, with columns of their own: their products with each action, with every other dimension
     and with themselves (a distance to a target that drifts), and for the reward their value after the step.
 
-    Made on a long log only (:data:`JUDGE_AFTER` observations): a drifting dimension moves slowly, so over the few episodes of
-    the first steps it correlates by chance with whatever else changes slowly (a walk explains up to 0.7 of
-    another dimension at 1,000 steps, 0.05 at 30,000, where a drifting target and a wind explain 0.4 or more and
+    Made on a long log only (:data:`JUDGE_AFTER` observations): a drifting dimension moves slowly, so over the few
+    episodes of the first steps it correlates by chance with whatever else changes slowly (a walk explains up to 0.7
+    of another dimension at 1,000 steps, 0.05 at 30,000, where a drifting target and a wind explain 0.4 or more and
     LunarLander's contacts 0.13; docs/results/dimensions.md, Walks)."""
     obs = np.asarray(obs, dtype=np.float64)
     drift = np.asarray(drift, dtype=bool)

@@ -309,14 +309,15 @@ class ScaledMetric(BaseAgent):
     def scale_(self) -> np.ndarray:
         """The metric's scale in force, one number per dimension: ``scale``, or the ``high - low`` of the
         observation bounds (``obs_bounds`` or the space's), or with ``scale="auto"`` where those are not
-        finite the estimate from the observations so far; ``inf`` for a dimension found to be noise
+        finite the estimate from the observations so far; ``inf`` for a dimension found to be noise or to drift
         (``ignore_noise``), which the distance then ignores."""
         return self._scale.copy()
 
     @property
     def _learns_metric(self) -> bool:
-        """Whether the metric may still change at the end of an episode (``scale="auto"``'s estimates or the
-        noise test): the fused loops, which count no observations, are then not used."""
+        """Whether the metric may still change at the end of an episode (``scale="auto"``'s estimates, the noise
+        test, or drifting dimensions not yet judged): the fused loops, which count no observations, are then not
+        used."""
         return bool(self._estimated.any() or self._drifting.any()) or (self._tests_noise and not self._noise_tested)
 
     def _new_spread(self) -> RunningSpread:
@@ -327,7 +328,9 @@ class ScaledMetric(BaseAgent):
     def _refresh_metric(self, spread: RunningSpread, inv_scale: np.ndarray) -> bool:
         """At the end of an episode: ``scale="auto"``'s estimates brought up to date (:func:`refresh_scale`), and
         once ``spread`` counted its ``scale_warmup`` observations, the noise test made (once): a dimension found
-        to be noise gets an infinite scale and ``inv_scale`` 0. Returns whether the metric changed."""
+        to be noise, or to drift, gets an infinite scale and ``inv_scale`` 0; once the log then holds
+        ``JUDGE_AFTER`` observations, a drifting dimension that matters gets its scale back (once). Returns whether
+        the metric changed."""
         noise = np.isinf(self._scale)
         changed = bool(self._estimated.any()) and refresh_scale(
             self._scale, inv_scale, self._estimated & ~noise, spread, self._factor
