@@ -80,12 +80,32 @@ def noise_dims(
     coef, *_ = np.linalg.lstsq(before, target, rcond=None)
     residual = (target - before @ coef).var(axis=0)
     variance = target.var(axis=0)
-    varied = variance > 1e-12 * np.maximum(1.0, np.abs(target).max(axis=0)) ** 2
+    varied = _varies(variance, target)
     explained = 1.0 - residual / np.where(varied, variance, 1.0)
     noise = varied & (explained < NOISE_R2)
     if actions is not None and rewards is not None and noise.any():
         noise &= ~matters(obs, after, np.asarray(actions)[after], np.asarray(rewards, dtype=np.float64)[after], noise)
     return noise
+
+
+def _varies(variance: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Whether each column's ``variance`` is more than rounding on the scale of its ``values``."""
+    return variance > 1e-12 * np.maximum(1.0, np.abs(values).max(axis=0)) ** 2
+
+
+def _one_hot(actions: np.ndarray) -> np.ndarray:
+    """A column per action taken, 1 where it was."""
+    _, which = np.unique(actions, return_inverse=True)
+    return np.eye(int(which.max()) + 1)[which]
+
+
+def _share(base: np.ndarray, target: np.ndarray, left: np.ndarray, own: np.ndarray, after: np.ndarray) -> float:
+    """The largest share of what the fit on ``base`` leaves of a column of ``target`` (``left``; the first column
+    the reward) that the columns ``own`` explain besides, or, of the reward, a dimension's value ``after`` the step
+    (the reward may depend on the value the step led to: a leg that touches the ground)."""
+    with_own = _left(np.column_stack([base, own]), target)
+    with_own[0] = min(with_own[0], _left(np.column_stack([base, after]), target[:, :1])[0])
+    return float(np.where(left > 1e-12, 1.0 - with_own / np.where(left > 1e-12, left, 1.0), 0.0).max())
 
 
 def _left(columns: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -101,19 +121,14 @@ def matters(
     observation without them and the action leave unexplained of the reward or of the next value of a dimension
     that is not noise, or whose value after the step explains that share of the reward (the pairs
     ``obs[after - 1] -> obs[after]``; ``actions`` and ``rewards`` of those steps)."""
-    _, which = np.unique(actions, return_inverse=True)
-    one_hot = np.eye(int(which.max()) + 1)[which]
+    one_hot = _one_hot(actions)
     before = obs[after - 1]
     target = np.column_stack([rewards, obs[after][:, ~noise]])
     kept = np.zeros(len(noise), dtype=bool)
     base = np.column_stack([one_hot, np.delete(before, np.flatnonzero(noise), axis=1)])
     left = _left(base, target)
     for j in np.flatnonzero(noise):
-        with_j = _left(np.column_stack([base, one_hot * before[:, j : j + 1]]), target)
-        # (the reward may also depend on the value the step led to: a leg that touches the ground)
-        with_j[0] = min(with_j[0], _left(np.column_stack([base, obs[after, j]]), target[:, :1])[0])
-        share = np.where(left > 1e-12, 1.0 - with_j / np.where(left > 1e-12, left, 1.0), 0.0)
-        kept[j] = share.max() >= RELEVANT_R2
+        kept[j] = _share(base, target, left, one_hot * before[:, j : j + 1], obs[after, j]) >= RELEVANT_R2
     return kept
 
 
@@ -136,8 +151,7 @@ def _pairs(follows: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.nda
     after = after[np.asarray(actions)[after] >= 0]
     if after.size == 0:
         return None
-    _, which = np.unique(np.asarray(actions)[after], return_inverse=True)
-    return after, np.eye(int(which.max()) + 1)[which]
+    return after, _one_hot(np.asarray(actions)[after])
 
 
 def drift_dims(obs: np.ndarray, follows: np.ndarray, actions: np.ndarray, noise: np.ndarray) -> np.ndarray:
@@ -163,7 +177,7 @@ def drift_dims(obs: np.ndarray, follows: np.ndarray, actions: np.ndarray, noise:
     after, one_hot = pairs
     change = obs[after] - obs[after - 1]
     variance = change.var(axis=0)
-    varied = variance > 1e-12 * np.maximum(1.0, np.abs(obs[after]).max(axis=0)) ** 2
+    varied = _varies(variance, obs[after])
     varied &= (change != 0).mean(axis=0) > 0.5  # (a dimension that mostly keeps its value changes in jumps: events)
     varied &= ~noise
     while True:  # (again without those found: fewer columns, less that a walk explains by chance)
@@ -203,8 +217,6 @@ def drift_matters(
     left = _left(base, target)
     for j in np.flatnonzero(drift):
         own = _standard(obs[after - 1, j : j + 1])
-        with_j = _left(np.column_stack([base, one_hot * obs[after - 1, j : j + 1], own * rest, own**2]), target)
-        with_j[0] = min(with_j[0], _left(np.column_stack([base, obs[after, j]]), target[:, :1])[0])
-        share = np.where(left > 1e-12, 1.0 - with_j / np.where(left > 1e-12, left, 1.0), 0.0)
-        kept[j] = share.max() >= DRIFT_RELEVANT_R2
+        columns = np.column_stack([one_hot * obs[after - 1, j : j + 1], own * rest, own**2])
+        kept[j] = _share(base, target, left, columns, obs[after, j]) >= DRIFT_RELEVANT_R2
     return kept

@@ -81,23 +81,24 @@ class RunningSpread:
             self.m2 += delta * (x - self.mean)
         return not self.done
 
-    def noise(self) -> np.ndarray:
-        """:func:`avq.agents._noise.noise_dims` of the observations logged."""
+    def log(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The log so far: observations, whether each follows the one before it, actions and rewards."""
         assert self.obs is not None
         c = self.logged
-        return noise_dims(self.obs[:c], self.follows[:c], self.actions[:c], self.rewards[:c])
+        return self.obs[:c], self.follows[:c], self.actions[:c], self.rewards[:c]
+
+    def noise(self) -> np.ndarray:
+        """:func:`avq.agents._noise.noise_dims` of the observations logged."""
+        return noise_dims(*self.log())
 
     def drift(self, noise: np.ndarray) -> np.ndarray:
         """:func:`avq.agents._noise.drift_dims` of the observations logged, besides the dimensions ``noise``."""
-        assert self.obs is not None
-        c = self.logged
-        return drift_dims(self.obs[:c], self.follows[:c], self.actions[:c], noise)
+        obs, follows, actions, _ = self.log()
+        return drift_dims(obs, follows, actions, noise)
 
     def drift_matters(self, drift: np.ndarray) -> np.ndarray:
         """:func:`avq.agents._noise.drift_matters` of the observations logged, for the dimensions ``drift``."""
-        assert self.obs is not None
-        c = self.logged
-        return drift_matters(self.obs[:c], self.follows[:c], self.actions[:c], self.rewards[:c], drift)
+        return drift_matters(*self.log(), drift)
 
     def std(self) -> np.ndarray:
         """``(n,)`` the standard deviation of the observations counted (ddof 0; zeros before any)."""
@@ -111,11 +112,8 @@ def scale_state(scale: np.ndarray, spread: RunningSpread) -> tuple[dict[str, Any
     arrays = {"scale": scale.copy(), "scale_spread": np.stack([spread.mean, spread.m2])}
     meta: dict[str, Any] = {"scale_count": spread.count}
     if spread.obs is not None:
-        c = spread.logged
-        arrays["noise_log"] = np.column_stack(
-            [spread.obs[:c], spread.follows[:c], spread.actions[:c], spread.rewards[:c]]
-        )
-        meta.update(log_count=c, log_limit=spread.log_limit)
+        arrays["noise_log"] = np.column_stack(spread.log())
+        meta.update(log_count=spread.logged, log_limit=spread.log_limit)
     return meta, arrays
 
 
