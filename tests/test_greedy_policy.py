@@ -1,13 +1,15 @@
 """The greedy policy of the agents that plan over a learned model (agents/plan/exploit.py): the model's plan
-with every pair not yet known worth ``v_min`` instead of ``v_opt``; learning is unchanged."""
+with every pair not yet known worth the floor (the lowest return of an episode seen, no less than ``v_min``)
+instead of ``v_opt``; learning is unchanged."""
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import avq
+from avq.agents._history import EpisodeHistory
 from avq.agents.plan import tabular
-from avq.agents.plan.exploit import greedy_actions, greedy_ceiling, plan_without_optimism
+from avq.agents.plan.exploit import greedy_actions, greedy_ceiling, greedy_floor, plan_without_optimism
 from avq.agents.plan.model import BACKUPS, Model
 
 
@@ -23,9 +25,9 @@ def observe(mdl, s, a, r, s2):
     return tabular.observe(mdl.a, s, a, r, 1.0, s2, 1000)
 
 
-def greedy(mdl, max_sweeps=1000):
+def greedy(mdl, max_sweeps=1000, floor=-np.inf):
     q, v = np.empty_like(mdl.a.Q), np.empty_like(mdl.a.V)
-    sweeps = plan_without_optimism(mdl.a, q, v, max_sweeps)
+    sweeps = plan_without_optimism(mdl.a, q, v, max_sweeps, floor)
     return q[: mdl.n_states], v[: mdl.n_states], sweeps
 
 
@@ -40,6 +42,38 @@ def test_a_decision_towards_untried_ones_is_worth_what_was_seen_not_what_is_hope
     # Without it: state 1 is worth v_min = -100, Q(0, 0) = -1 - 100 floored at -100; the greedy choice is 1.
     assert q[0].tolist() == [-100.0, 5.0] and v[1] == -100.0 and v[0] == 5.0
     assert mdl.a.Q[0].tolist() == [9.0, 5.0]  # (the model's own values are left as they were)
+    # With a floor of -30 (the lowest return seen) state 1 is worth -30 and Q(0, 0) = -31; below v_min, v_min.
+    q, v, _ = greedy(mdl, floor=-30.0)
+    assert q[0].tolist() == [-31.0, 5.0] and v[1] == -30.0
+    assert greedy(mdl, floor=-1000.0)[1][1] == -100.0
+
+
+def test_the_floor_is_the_lowest_return_seen_no_higher_than_0():
+    assert greedy_floor(None) == -np.inf and greedy_floor(-852.7) == -852.7 and greedy_floor(9.0) == 0.0
+    history = EpisodeHistory()
+    assert history.lowest_return() is None
+    for k, ret in enumerate((-120.5, -852.7, 40.0)):
+        history.append(dict(episode=k + 1, steps=10, **{"return": ret}, n_cells=1, appends=0, merges=0, refused=0,
+                            decisions=1, wall_s=0.0))  # fmt: skip
+    assert history.lowest_return() == -852.7
+
+
+def test_a_rare_path_into_the_unknown_no_longer_outweighs_a_crash():
+    # What the greedy policy met on LunarLander-v3: from state 0, action 0 ends the episode at once at -100 (a
+    # crash); action 1 leads 49 times of 50 to state 1, whose action 0 ends it at +100 (a landing), and once to
+    # state 2, whose decisions are all untried. v_min -10,000: action 1 is worth 0.98 * 100 + 0.02 * -10,000 =
+    # -102, below the crash. With the lowest return seen as the floor (-300): 0.98 * 100 + 0.02 * -300 = 92.
+    mdl = model(m=2, v_opt=100.0, v_min=-10_000.0, known=1, states=3)  # (v_opt: R-max's bound, the ceiling)
+    observe(mdl, 0, 0, -100.0, -1)
+    for k in range(50):
+        observe(mdl, 0, 1, 0.0, 2 if k == 0 else 1)
+    observe(mdl, 1, 0, 100.0, -1)
+    observe(mdl, 1, 1, -100.0, -1)
+    q, _, _ = greedy(mdl)
+    assert q[0] == pytest.approx([-100.0, -102.0])
+    q, _, _ = greedy(mdl, floor=-300.0)
+    assert q[0] == pytest.approx([-100.0, 92.0])
+    assert greedy_actions(mdl.a)[0] == 0 and greedy_actions(mdl.a, -300.0)[0] == 1
 
 
 def test_the_greedy_values_are_the_planned_ones_where_every_pair_is_known():
@@ -96,7 +130,7 @@ def test_decisions_the_plan_values_alike_are_told_apart_by_the_planned_values():
 @pytest.mark.parametrize("name", ["avq", "tabular-ps"])
 def test_predict_follows_the_plan_without_optimism_and_plans_again_after_learning(name):
     env = gym.make("avq/SlabMaze-v0", dims=2, layout_seed=2) if name == "avq" else gym.make("avq/GridMaze-v0")
-    steps = 1500 if name == "avq" else 300
+    steps = 1500 if name == "avq" else 450
     agent = avq.make_agent(name, env, seed=3).learn(total_timesteps=steps)
     if name == "avq":
         obs = np.random.default_rng(0).random((400, 2)).astype(np.float32)
@@ -105,17 +139,19 @@ def test_predict_follows_the_plan_without_optimism_and_plans_again_after_learnin
         obs = agent.states_.astype(np.float32)  # (one row per observation seen, in the rows' order)
         rows = np.arange(len(obs))
     actions, _ = agent.predict(obs, deterministic=True)
-    assert np.array_equal(actions, greedy_actions(agent.model_.a)[rows])
+    floor = greedy_floor(agent.history_.lowest_return())
+    assert floor == min(0.0, agent.episode_history()["return"].min()) > -np.inf
+    assert np.array_equal(actions, greedy_actions(agent.model_.a, floor)[rows])
     # Somewhere the exploring agent's values would have chosen otherwise (towards what it has not tried).
     assert np.any(actions != agent.q_[rows].argmax(axis=1))
     # After more learning the greedy values are planned again from the changed model.
-    before = greedy_actions(agent.model_.a)
+    before = greedy_actions(agent.model_.a, floor)
     agent.learn(total_timesteps=steps)
     if name == "avq":
         rows = agent.cells(obs)
     else:
         obs = agent.states_.astype(np.float32)
         rows = np.arange(len(obs))
-    after = greedy_actions(agent.model_.a)
+    after = greedy_actions(agent.model_.a, greedy_floor(agent.history_.lowest_return()))
     assert len(after) > len(before) or np.any(after != before[: len(after)])  # (the model did change)
     assert np.array_equal(agent.predict(obs, deterministic=True)[0], after[rows])

@@ -89,6 +89,10 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
         history._reserve(len(data))[:] = data
         return history
 
+    def lowest_return(self) -> float | None:
+        """The lowest ``return`` of the episodes recorded; None when no episode finished."""
+        return float(self._data[: self._n, HISTORY_FIELDS.index("return")].min()) if self._n else None
+
     def columns(self) -> dict[str, np.ndarray]:
         """Every field as an array (``int64`` or ``float64``); empty when no episode finished."""
         if self._n == 0:

@@ -21,7 +21,7 @@ from avq.agents.base import BaseAgent, EpisodeRecord, episode_record
 from avq.agents.baselines.grid import bin_coordinates, uniform_grid
 from avq.agents.baselines.table import greedy_over_rows, observation_key
 from avq.agents.plan import model as _model
-from avq.agents.plan.exploit import greedy_actions
+from avq.agents.plan.exploit import greedy_actions, greedy_floor
 from avq.agents.plan.fused import PSTable, run_ps_grid_maze
 from avq.agents.plan.model import Model
 from avq.agents.plan.tabular import ps_step
@@ -33,21 +33,22 @@ class ModelPlanner(BaseAgent):
     """What the agents that plan by prioritized sweeping over a learned :class:`~avq.agents.plan.model.Model`
     (``_model``, whose states are the agent's ``n_cells`` states or cells) show of it: ``q_``, the planned
     values, the model itself and the planner's counts; and their greedy policy, chosen on the model's plan
-    without optimism (:func:`~avq.agents.plan.exploit.plan_without_optimism`), planned again only when the model
-    changed since (the key: its arrays, backups, states and edges)."""
+    without optimism (:func:`~avq.agents.plan.exploit.plan_without_optimism`: a pair not yet known worth the lowest
+    return of an episode seen), planned again only when the model or that floor changed since (the key: its
+    arrays, backups, states and edges, and the floor)."""
 
     _model: Model
-    _greedy: tuple[tuple[int, ...], np.ndarray] | None = None
+    _greedy: tuple[tuple[float, ...], np.ndarray] | None = None
 
     def _greedy_q(self) -> np.ndarray:
         """What ``predict(deterministic=True)`` maximizes, a row per state: 1 for the greedy action
         (:func:`~avq.agents.plan.exploit.greedy_actions`), 0 for the others (docs: explanation/beyond-the-paper.md,
         The greedy policy)."""
-        a = self._model.a
-        key = (id(a), int(a.C[_model.BACKUPS]), int(a.C[_model.N_STATES]), int(a.C[_model.N_EDGES]))
+        a, floor = self._model.a, greedy_floor(self.history_.lowest_return())
+        key = (id(a), int(a.C[_model.BACKUPS]), int(a.C[_model.N_STATES]), int(a.C[_model.N_EDGES]), floor)
         if self._greedy is None or self._greedy[0] != key:
             choice = np.zeros_like(a.Q)
-            best = greedy_actions(a)
+            best = greedy_actions(a, floor)
             choice[np.arange(len(best)), best] = 1.0
             self._greedy = (key, choice)
         return self._greedy[1]
