@@ -93,7 +93,9 @@ class PrioritizedSweeping(PlanningSettings, ModelPlanner, PerStepAgent):
         epsilon: Exploration rate on top of optimism, in [0, 1].
         v_opt: Value of a pair not yet known: at least what the best return could be (on the grid maze,
             the goal's reward, 10).
-        v_min: Floor of every known value (below any true value of the task).
+        v_min: Floor of every known value (below any true value of the task); in the greedy policy a pair not yet
+            known is worth the lowest return of an episode seen (no higher than 0), ``v_min`` only until an episode
+            has ended (:func:`avq.agents.plan.exploit.greedy_floor`).
         known_after: Transitions after which a pair's own statistics replace ``v_opt`` (1: at once, right
             for deterministic tasks; more for noisy ones).
         n_backups: Backups per step beyond the one of the pair just tried (0: no planning beyond it).
