@@ -10,6 +10,7 @@ import numpy as np
 #: The fields of one record, in column order. ``return`` and ``wall_s`` are floats, the rest integers.
 HISTORY_FIELDS = ("episode", "steps", "return", "n_cells", "appends", "merges", "refused", "decisions", "wall_s")
 _FLOAT_FIELDS = frozenset({"return", "wall_s"})
+_RETURN = HISTORY_FIELDS.index("return")
 
 
 class EpisodeHistory(Sequence[dict[str, Any]]):
@@ -24,6 +25,8 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
     def __init__(self) -> None:
         self._data = np.zeros((0, len(HISTORY_FIELDS)))
         self._n = 0
+        #: The lowest return of the first ``_lowest_of`` records (:meth:`lowest_return` reads only the rows since).
+        self._lowest, self._lowest_of = np.inf, 0
 
     def __len__(self) -> int:
         return self._n
@@ -90,8 +93,14 @@ class EpisodeHistory(Sequence[dict[str, Any]]):
         return history
 
     def lowest_return(self) -> float | None:
-        """The lowest ``return`` of the episodes recorded; None when no episode finished."""
-        return float(self._data[: self._n, HISTORY_FIELDS.index("return")].min()) if self._n else None
+        """The lowest ``return`` of the episodes recorded; None when no episode finished. (Read at every greedy
+        ``predict`` of a planning agent: only the records added since the last call are scanned.)"""
+        if self._n == 0:
+            return None
+        if self._lowest_of < self._n:
+            self._lowest = min(self._lowest, float(self._data[self._lowest_of : self._n, _RETURN].min()))
+            self._lowest_of = self._n
+        return self._lowest
 
     def columns(self) -> dict[str, np.ndarray]:
         """Every field as an array (``int64`` or ``float64``); empty when no episode finished."""
