@@ -198,6 +198,7 @@ def main() -> None:
     ap.add_argument("--budget", type=int, default=None, help="env steps per run before giving up")
     ap.add_argument("--agents", default=None, help="comma-separated agents to run (default: all of the family)")
     ap.add_argument("--jobs", type=int, default=-1, help="parallel runs (default: one per core)")
+    ap.add_argument("--plot", action="store_true", help="only the figure and the table, from the family's CSV")
     args = ap.parse_args()
     family = "resolution" if args.resolution else "robot" if args.robot else "generated"
     fam = FAMILIES[family]
@@ -219,23 +220,33 @@ def main() -> None:
         f"{len(jobs)} runs ({family}{', slip ' + str(args.slip) if args.slip else ''}) on {os.cpu_count()} cores: "
         f"{fam['size']} {sizes}, {seeds} seeds, budget {budget:,} steps"
     )
-    new = Parallel(n_jobs=args.jobs)(
-        delayed(steps_to_success)(family, n, s, sd, budget, args.slip) for n, s, sd in jobs
+    new = (
+        []
+        if args.plot
+        else Parallel(n_jobs=args.jobs)(
+            delayed(steps_to_success)(family, n, s, sd, budget, args.slip) for n, s, sd in jobs
+        )
     )
     kept = [
         r
         for r in _read(csv_path)
-        if r["agent"] not in names and r["agent"] in fam["agents"] and r["size"] in sizes and r["seed"] < seeds
+        if (args.plot or r["agent"] not in names)
+        and r["agent"] in fam["agents"]
+        and r["size"] in sizes
+        and r["seed"] < seeds
     ]
     rows = kept + new
     # The agents with runs at every size (kept rows from a run over other sizes are left out).
     present = [n for n in fam["agents"] if all(any(r["agent"] == n and r["size"] == s for r in rows) for s in sizes)]
     rows = [r for r in rows if r["agent"] in present]
-    Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
-    with open(csv_path, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
+    if args.plot and not present:
+        ap.error(f"--plot: no runs of {', '.join(map(format, sizes))} in {csv_path}; run the study first")
+    if not args.plot:
+        Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
+        with open(csv_path, "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=FIELDS)
+            writer.writeheader()
+            writer.writerows(rows)
     summary = summarize(rows, present, sizes)
     print(
         f"\n{fam['size']:>6} {'states':>7} {'agent':<11} {'steps to 95%: median [range]':>34} {'reached':>8} "
@@ -253,6 +264,7 @@ def main() -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for name in present:
@@ -261,8 +273,13 @@ def main() -> None:
         axes[0].plot(x, [p[1] for p in pts], "o-", label=name)
         axes[1].plot(x, [p[4] for p in pts], "o-", label=name)
     labels = ("env steps to 95% greedy success (median)", "cells, states or features then (median)")
+    states = [summary[(present[0], s)][0] for s in sizes]
     for ax, ylabel in zip(axes, labels):
         ax.set_xscale("log")
+        # The measured sizes as the ticks, in plain numbers (a log axis over less than two decades otherwise
+        # labels its minor ticks over each other).
+        ax.set_xticks(states, [f"{int(v):,}" for v in states])
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_yscale("log")
         ax.set_xlabel({"robot": "lattice positions of the robot"}.get(family, "free squares of the maze"))
         ax.set_ylabel(ylabel)
@@ -281,7 +298,7 @@ def main() -> None:
     fig.tight_layout()
     Path(figure).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(figure, dpi=130)
-    print(f"\nwrote {csv_path} and {figure}")
+    print(f"\nwrote {figure}" if args.plot else f"\nwrote {csv_path} and {figure}")
 
 
 if __name__ == "__main__":
