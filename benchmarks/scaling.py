@@ -215,25 +215,21 @@ def main() -> None:
     suffix = f"_slip{args.slip:g}" if args.slip else ""
     csv_path = fam["csv"].replace(".csv", suffix + ".csv")
     figure = fam["figure"].replace(".png", suffix + ".png")
+    if args.plot:
+        names = []  # (run nothing: every row of the CSV is kept)
     jobs = [(name, size, seed) for size in sizes for name in names for seed in range(seeds)]
-    print(
-        f"{len(jobs)} runs ({family}{', slip ' + str(args.slip) if args.slip else ''}) on {os.cpu_count()} cores: "
-        f"{fam['size']} {sizes}, {seeds} seeds, budget {budget:,} steps"
-    )
-    new = (
-        []
-        if args.plot
-        else Parallel(n_jobs=args.jobs)(
-            delayed(steps_to_success)(family, n, s, sd, budget, args.slip) for n, s, sd in jobs
+    if jobs:
+        print(
+            f"{len(jobs)} runs ({family}{', slip ' + str(args.slip) if args.slip else ''}) on {os.cpu_count()} "
+            f"cores: {fam['size']} {sizes}, {seeds} seeds, budget {budget:,} steps"
         )
+    new = Parallel(n_jobs=args.jobs)(
+        delayed(steps_to_success)(family, n, s, sd, budget, args.slip) for n, s, sd in jobs
     )
     kept = [
         r
         for r in _read(csv_path)
-        if (args.plot or r["agent"] not in names)
-        and r["agent"] in fam["agents"]
-        and r["size"] in sizes
-        and r["seed"] < seeds
+        if r["agent"] not in names and r["agent"] in fam["agents"] and r["size"] in sizes and r["seed"] < seeds
     ]
     rows = kept + new
     # The agents with runs at every size (kept rows from a run over other sizes are left out).

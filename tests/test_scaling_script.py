@@ -1,13 +1,16 @@
 """benchmarks/scaling.py --plot: the figure and the table drawn again from the family's CSV, which is left as it is."""
 
 import csv
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = str(ROOT / "benchmarks" / "scaling.py")
-FIELDS = ("agent", "size", "states", "slip", "seed", "reached", "env_steps", "cells", "success", "backups", "wall_s")
+SPEC = importlib.util.spec_from_file_location("scaling", SCRIPT)
+scaling = importlib.util.module_from_spec(SPEC)
+SPEC.loader.exec_module(scaling)
 
 
 def _plot(cwd: Path, *args: str) -> subprocess.CompletedProcess:
@@ -25,7 +28,7 @@ def test_plot_redraws_from_the_csv_without_running_or_rewriting_it(tmp_path):
         for s, steps in enumerate((base, 2 * base, 1_000_001 if a == "tiles" and m == 0.125 else 3 * base))
     ]  # fmt: skip
     with open(data / "scaling_robot.csv", "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=FIELDS)
+        writer = csv.DictWriter(f, fieldnames=scaling.FIELDS)
         writer.writeheader()
         writer.writerows(rows)
     before = (data / "scaling_robot.csv").read_bytes()
