@@ -29,6 +29,9 @@ ADDED_PARAMS.update(collision_cut=False, axis_share=None)
 ADDED_PARAMS["compose_crossings"] = False
 #: Since then too, v_opt="auto" on rewards of both signs: the current episode's rewards (episode_rewards) and the
 #: model's ceiling of values (a last entry of m_MP, no ceiling unless rewards of both signs were seen).
+#: And the metric weighted by the values' slopes once the codebook is full (a file without it loads with it off;
+#: its weights are saved once applied).
+ADDED_PARAMS["reweight_when_full"] = False
 ADDED_ARRAYS = {"m_cint", "episode_rewards", "noise_dims", "drift_dims", "drift_scale"}
 GREW = {"S", "mem_i"}
 PAIRS = sorted({re.sub(r"__\d+\.zip$", "", p.name) for p in DATA.glob("*.zip")})

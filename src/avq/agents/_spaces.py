@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 from avq._validate import check_bool, check_int
 from avq.agents._noise import JUDGE_AFTER
+from avq.agents._value_weights import MIN_CELLS, slope_weights, value_slopes
 from avq.agents._warmup import RunningSpread, load_scale_state, scale_state
 from avq.agents.base import BaseAgent
 
@@ -279,11 +280,14 @@ class ScaledMetric(BaseAgent):
         scale_factor: float | Sequence[float],
         obs_bounds: Sequence[Any] | None,
         ignore_noise: bool = True,
+        reweight_when_full: bool = False,
     ) -> None:
         """Store and check the metric's parameters (``scale`` as given), make the environment
         (``BaseAgent``), then resolve the scale in force and ``scale_factor`` as a number or a list. A
-        subclass checks its own parameters first."""
+        subclass checks its own parameters first; one that takes ``reweight_when_full`` gives the values
+        (:meth:`_settled_values`)."""
         self.scale = scale
+        self.reweight_when_full = check_bool("reweight_when_full", reweight_when_full)
         self.scale_warmup = check_int("scale_warmup", scale_warmup, 2)
         self.obs_bounds = normalize_obs_bounds(obs_bounds)
         self.ignore_noise = check_bool("ignore_noise", ignore_noise)
@@ -301,6 +305,9 @@ class ScaledMetric(BaseAgent):
         #: (avq.agents._noise.drift_matters), and the scale each had then.
         self._drifting = np.zeros(len(self._scale), dtype=bool)
         self._held = np.zeros(len(self._scale))
+        #: The weights learned from the values' slopes (reweight_when_full; avq.agents._value_weights), 1 until then.
+        self._weights = np.ones(len(self._scale))
+        self._weighted = False
 
     def _check_spaces(self, obs_space: spaces.Space, act_space: spaces.Space) -> None:
         check_box_discrete(type(self).__name__, obs_space, act_space, "there is nothing to quantize")
@@ -316,21 +323,23 @@ class ScaledMetric(BaseAgent):
     @property
     def _learns_metric(self) -> bool:
         """Whether the metric may still change at the end of an episode (``scale="auto"``'s estimates, the noise
-        test, or drifting dimensions not yet judged): the fused loops, which count no observations, are then not
-        used."""
-        return bool(self._estimated.any() or self._drifting.any()) or (self._tests_noise and not self._noise_tested)
+        test, drifting dimensions not yet judged, or ``reweight_when_full`` not yet done): the fused loops, which count
+        no observations and see no values, are then not used."""
+        waits = (self._tests_noise and not self._noise_tested) or (self.reweight_when_full and not self._weighted)
+        return bool(self._estimated.any() or self._drifting.any()) or waits
 
     def _new_spread(self) -> RunningSpread:
         """The observations to count for ``scale="auto"`` and the noise test (none when neither needs them)."""
         counted = self._estimated.any() or self._tests_noise
         return RunningSpread(len(self._scale), self.scale_warmup if counted else 0, log=self._tests_noise)
 
-    def _refresh_metric(self, spread: RunningSpread, inv_scale: np.ndarray) -> bool:
+    def _refresh_metric(self, spread: RunningSpread, inv_scale: np.ndarray, full: bool = False) -> bool:
         """At the end of an episode: ``scale="auto"``'s estimates brought up to date (:func:`refresh_scale`), and
         once ``spread`` counted its ``scale_warmup`` observations, the noise test made (once): a dimension found
         to be noise, or to drift, gets an infinite scale and ``inv_scale`` 0; once the log then holds
-        ``JUDGE_AFTER`` observations, a drifting dimension that matters gets its scale back (once). Returns whether
-        the metric changed."""
+        ``JUDGE_AFTER`` observations, a drifting dimension that matters gets its scale back (once); with
+        ``reweight_when_full``, once the caller's codebook is ``full``, the metric weighted by the values' slopes
+        (:meth:`_reweight`). Returns whether the metric changed."""
         noise = np.isinf(self._scale)
         changed = bool(self._estimated.any()) and refresh_scale(
             self._scale, inv_scale, self._estimated & ~noise, spread, self._factor
@@ -350,7 +359,29 @@ class ScaledMetric(BaseAgent):
             self._scale[back], inv_scale[back] = self._held[back], 1.0 / self._held[back]
             self._drifting[:] = False
             changed = changed or bool(back.any())
-        return changed
+        due = self.reweight_when_full and full and not self._weighted
+        return (due and self._reweight(inv_scale)) or changed
+
+    def _settled_values(self) -> tuple[np.ndarray, np.ndarray]:
+        """The vectors (observation units, ``(p, n)``) and planned values (``(p,)``) of the cells whose every
+        decision is known: what ``reweight_when_full`` fits the slopes to. Given by the agents that take it."""
+        raise NotImplementedError(f"{type(self).__name__} does not learn its metric's weights from its values")
+
+    def _reweight(self, inv_scale: np.ndarray) -> bool:
+        """``reweight_when_full``: once :data:`~avq.agents._value_weights.MIN_CELLS` cells are settled, weight each
+        dimension of the metric (those it counts) by the slope of their values along it
+        (:func:`~avq.agents._value_weights.slope_weights`): its scale, and the factor that ``scale="auto"``'s
+        estimates keep, divided by the weight. Returns whether it did (else it is tried again at the next call)."""
+        vectors, values = self._settled_values()
+        live = inv_scale > 0
+        if len(values) < MIN_CELLS or not live.any():
+            return False
+        self._weights[live] = slope_weights(value_slopes(vectors[:, live] * inv_scale[live], values))
+        self._weighted = True
+        self._factor = self._factor / self._weights
+        self._scale /= self._weights
+        inv_scale[:] = 1.0 / self._scale
+        return True
 
     def _metric_state(self, spread: RunningSpread) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """What a saved agent keeps of its metric (:func:`scale_state`, and whether the noise test was made)."""
@@ -358,6 +389,8 @@ class ScaledMetric(BaseAgent):
         meta, arrays = scale_state(np.where(noise, 1.0, self._scale), spread)  # (a model file holds finite numbers)
         arrays["noise_dims"] = noise.astype(np.int8)
         arrays["drift_dims"], arrays["drift_scale"] = self._drifting.astype(np.int8), self._held.copy()
+        if self._weighted:  # (reweight_when_full: the weights in force)
+            arrays["metric_weights"] = self._weights.copy()
         return dict(meta, noise_tested=self._noise_tested), arrays
 
     def _load_metric_state(self, meta: dict[str, Any], arrays: dict[str, np.ndarray], spread: RunningSpread) -> None:
@@ -365,6 +398,12 @@ class ScaledMetric(BaseAgent):
         noise = arrays.get("noise_dims", np.zeros(len(self._scale), dtype=np.int8))
         if noise.shape != self._scale.shape or (noise.any() and not self._tests_noise):
             raise ValueError(f"array noise_dims {noise.tolist()} does not fit the parameters' scale and ignore_noise")
+        weights = arrays.get("metric_weights", np.ones(len(self._scale)))
+        if weights.shape != self._scale.shape or not (weights > 0).all():
+            raise ValueError(f"array metric_weights {weights.tolist()} must hold one number > 0 per dimension")
+        self._weights, self._weighted = weights.astype(np.float64), "metric_weights" in arrays
+        self._factor = self._factor / self._weights
+        self._scale /= self._weights
         load_scale_state(meta, arrays, self._scale, self._estimated | (noise > 0), spread)
         self._scale[noise > 0] = np.inf
         self._noise_tested = bool(meta.get("noise_tested", False))

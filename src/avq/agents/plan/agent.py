@@ -31,6 +31,7 @@ from avq.agents.plan.state import (
     auto_v_opt,
     best_return_to_go,
     horizon,
+    load_cells,
     load_state_arrays,
     no_neighbours,
     value_ceiling,
@@ -103,6 +104,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``),
             or whose change it does not (a slow drift), gets an infinite scale, so the distance and the cells ignore
             it; a drifting one gets its scale back if, after 30,000 observations, it is found to matter.
+        reweight_when_full: Once the codebook holds ``max_cells``, at the end of the episode (and of the next ones
+            until at least 20 cells have every decision known): weight each dimension of the metric by the slope of
+            those cells' planned values along it, finer where the value changes fast (src/avq/agents/_value_weights.py).
+            Once; the cells then keep their vectors, and the model follows its transitions into the new cells.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its cell,
             at an observation farther than ``d_min`` from every vector, ends there, and that observation becomes a
@@ -166,6 +171,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         scale_factor: float | Sequence[float] = 1.0,
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         ignore_noise: bool = True,
+        reweight_when_full: bool = True,
         max_cells: int = 2048,
         split_after: int | None = 5,
         rho: float | None = None,
@@ -201,7 +207,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self.compose_crossings = check_bool("compose_crossings", compose_crossings, "noise")
         self.known_radius = check_optional(check_range, "known_radius", known_radius, 0.0, np.inf, high_open=True)
         self.fused = check_bool("fused", fused)
-        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds, ignore_noise)
+        super().__init__(env, seed, scale, scale_warmup, scale_factor, obs_bounds, ignore_noise, reweight_when_full)
         #: v_opt="auto": the horizon by which the largest reward seen is multiplied.
         self._horizon = horizon(self.env, self.gamma)
 
@@ -296,11 +302,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return x
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        # One compiled call per step (core.step). Once a step has gone through Numba's dispatcher, later steps
-        # call the compiled function it chose directly (avq._numba.direct_call), which skips typing the records
-        # at every call. The arguments keep their types: the records' arrays are reallocated with the same
-        # dtypes, dimensions and layout (_make_room, Model.reserve), x is a float64 vector of the space's shape,
-        # r a float; an x that is not a writable C-contiguous array goes through the dispatcher.
+        # One compiled call per step (core.step); after the first through Numba's dispatcher, later ones call the
+        # compiled function it chose (avq._numba.direct_call), which skips typing the records: the arguments keep
+        # their types (_make_room and Model.reserve keep dtypes and layouts; x a float64 vector, r a float), and
+        # an x that is not a writable C-contiguous array goes through the dispatcher.
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
         count = None if self._spread.done else self._spread.add  # (during the warm-up, and its log)
@@ -320,16 +325,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
                 ) from None
             self._make_room()
             draws.reserve()
-            args = (
-                self._ag,
-                model.a,
-                draws.src,
-                x,
-                r,
-                bool(info.get("collision", False)),
-                bool(terminated),
-                bool(truncated),
-            )
+            collided = bool(info.get("collision", False))
+            args = (self._ag, model.a, draws.src, x, r, collided, bool(terminated), bool(truncated))
             flags = x.flags
             if direct is not None and flags.c_contiguous and flags.writeable:
                 a = direct(*args)
@@ -352,10 +349,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return n, False
 
     def _end_episode(self) -> EpisodeRecord:
-        if self._refresh_metric(self._spread, self._ag.inv_scale):
-            # scale="auto" or the noise test: the metric changed, so the cells of the remembered transitions may have; the
-            # model follows them (the codebook keeps its vectors in observation units), composing held crossings once
-            # the noise test has left dimensions out (the metric changes no more after it).
+        if self._refresh_metric(self._spread, self._ag.inv_scale, self.n_cells >= self.max_cells):
+            # scale="auto", the noise test or reweight_when_full changed the metric, so the cells of the remembered transitions
+            # may have; the model follows them (the codebook keeps its vectors in observation units), composing held
+            # crossings once the noise test has left dimensions out.
             memory.relocate(self._ag, self._model.a, -1, -1, bool(np.isinf(self._scale).any()))
             self._ag.S[GEOM] += 1
         if self.v_opt == "auto":
@@ -366,6 +363,12 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         row = np.zeros(7)
         core.end_record(self._ag.S, self._ag.F, row)
         return episode_record(*row)
+
+    def _settled_values(self) -> tuple[np.ndarray, np.ndarray]:
+        m, n = self._model.a, self.n_cells
+        values = m.Q[:n].max(axis=1)
+        settled = ((m.cnt[:n] - m.cint[:n]) >= m.C[_model.KNOWN]).all(axis=1) & (values > self.v_min)
+        return self._ag.V[:n][settled], values[settled]
 
     # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------
     def _fused_runner(self):
@@ -428,17 +431,12 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
     def _load_state_dict(self, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         super()._load_state_dict(meta, arrays)
         load_state_arrays(self._ag, arrays)
-        codebook, size, n = arrays["codebook"], int(self._ag.S[SIZE]), self._ag.xs.shape[0]
-        if codebook.shape != (size, n):
+        codebook = arrays["codebook"]
+        if codebook.shape != (size := int(self._ag.S[SIZE]), n := self._ag.xs.shape[0]):
             raise ValueError(f"array codebook has shape {codebook.shape}; expected ({size}, {n})")
         self._model.load_state_dict(arrays)
         self._make_room()  # (room for the loaded cells and edges)
-        self._ag.V[: len(codebook)] = codebook
-        self._ag.near[0, 0] = -1  # (the merge pass finds the loaded cells' neighbours again)
-        e_xs, edges = arrays["e_xs"], int(self._model.a.C[_model.N_EDGES])
-        if e_xs.shape != (edges, n):
-            raise ValueError(f"array e_xs has shape {e_xs.shape}; expected ({edges}, {n})")
-        self._ag.e_xs[: len(e_xs)] = e_xs
+        load_cells(self._ag, codebook, arrays["e_xs"], int(self._model.a.C[_model.N_EDGES]))
         self._load_metric_state(meta, arrays, self._spread)
         self._r_max = -np.inf if meta.get("reward_max") is None else float(meta["reward_max"])
         self._r_min = np.inf if meta.get("reward_min") is None else float(meta["reward_min"])

@@ -32,6 +32,7 @@ __all__ = [
     "best_return_to_go",
     "borrowed_plan",
     "horizon",
+    "load_cells",
     "load_state_arrays",
     "no_neighbours",
     "value_ceiling",
@@ -136,6 +137,17 @@ def load_state_arrays(ag: PlanArrays, arrays: dict[str, np.ndarray]) -> None:
         if theirs.shape != mine.shape:
             raise ValueError(f"array {name} has shape {theirs.shape}; expected {mine.shape}")
         mine[:] = theirs
+
+
+def load_cells(ag: PlanArrays, codebook: np.ndarray, e_xs: np.ndarray, edges: int) -> None:
+    """Copy a saved agent's ``codebook`` and its edges' summed starts ``e_xs`` (``edges`` rows) into ``ag``'s
+    arrays, which have room for them; the merge pass is to find the cells' neighbours again. Raises ValueError
+    for ``e_xs`` of another shape."""
+    if e_xs.shape != (edges, ag.xs.shape[0]):
+        raise ValueError(f"array e_xs has shape {e_xs.shape}; expected ({edges}, {ag.xs.shape[0]})")
+    ag.V[: len(codebook)] = codebook
+    ag.near[0, 0] = -1
+    ag.e_xs[: len(e_xs)] = e_xs
 
 
 #: ``borrowed_plan(ag)``: ``ag`` with its arrays as borrowed views (:func:`avq._numba.borrowed_record`), for a
