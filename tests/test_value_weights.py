@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import avq
-from avq.agents._value_weights import FLOOR, MIN_CELLS, NEIGHBOURS, slope_weights, value_slopes
+from avq.agents._value_weights import FLOOR, MIN_CELLS, NEIGHBOURS, SETTLED_SHARE, slope_weights, value_slopes
 
 
 def test_the_slope_is_found_along_the_dimension_the_value_follows_and_zero_along_the_other():
@@ -56,18 +56,25 @@ def watched(agent):
     return seen
 
 
-def test_the_metric_is_weighted_once_when_the_codebook_is_full_by_the_settled_cells_slopes():
+def test_the_metric_is_weighted_once_when_the_codebook_is_full_and_most_cells_are_settled():
     agent = avq.PlanningAVQ(gym.make("MountainCar-v0"), seed=0, max_cells=60)
-    assert agent.reweight_when_full
+    assert agent.reweight_when_full and SETTLED_SHARE == 0.75 and MIN_CELLS == 20
     seen = watched(agent)
     start = None
-    while not agent._weighted:
+    for _ in range(200):
         agent.learn(total_episodes=1)
         if start is None:
             start = agent.scale_  # (the bounds' ranges: MountainCar's are finite)
         assert agent.n_cells >= 60 or not seen  # (asked only once the codebook is full)
-    ((vectors, values), before), *_ = seen[-1:]
-    assert len(values) >= MIN_CELLS and np.array_equal(before, start)
+        if agent._weighted:
+            break
+    assert agent._weighted
+    # Asked at every episode's end since the codebook filled; weighted the first time three quarters of the cells
+    # (and at least 20) were settled.
+    for (_, values, cells), _ in seen[:-1]:
+        assert cells == 60 and len(values) < max(MIN_CELLS, SETTLED_SHARE * cells)
+    ((vectors, values, cells), before), *_ = seen[-1:]
+    assert len(values) >= max(MIN_CELLS, SETTLED_SHARE * cells) and np.array_equal(before, start)
     weights = slope_weights(value_slopes(vectors / before, values))
     assert agent.scale_ == pytest.approx(before / weights)
     assert np.prod(before / agent.scale_) == pytest.approx(1.0)  # (the cells' volume is kept)
@@ -101,13 +108,13 @@ def test_off_it_never_asks_and_the_maze_entries_keep_it_off_for_their_fused_loop
     assert avq.make_agent("avq", "Acrobot-v1", seed=0).get_params()["reweight_when_full"] is True
 
 
-@pytest.mark.parametrize("first", [10, 40])  # saved before the metric is weighted, and after
+@pytest.mark.parametrize("first", [10, 55])  # saved before the metric is weighted, and after
 def test_a_run_resumes_exactly_across_the_weighting(tmp_path, first):
     make = lambda: avq.PlanningAVQ(gym.make("CartPole-v1"), seed=3, max_cells=80)  # noqa: E731
-    whole = make().learn(total_episodes=60)
+    whole = make().learn(total_episodes=70)
     part = make().learn(total_episodes=first)
-    loaded = avq.load(part.save(tmp_path / "m.zip")).learn(total_episodes=60 - first)
-    assert whole._weighted and (part._weighted == (first == 40))
+    loaded = avq.load(part.save(tmp_path / "m.zip")).learn(total_episodes=70 - first)
+    assert whole._weighted and (part._weighted == (first == 55))
     assert np.array_equal(loaded.scale_, whole.scale_) and np.array_equal(loaded.codebook_, whole.codebook_)
     assert np.array_equal(loaded.q_, whole.q_)
     assert loaded.episode_history()["return"].tolist() == whole.episode_history()["return"].tolist()

@@ -12,7 +12,7 @@ from gymnasium import spaces
 
 from avq._validate import check_bool, check_int
 from avq.agents._noise import JUDGE_AFTER
-from avq.agents._value_weights import MIN_CELLS, slope_weights, value_slopes
+from avq.agents._value_weights import MIN_CELLS, SETTLED_SHARE, slope_weights, value_slopes
 from avq.agents._warmup import RunningSpread, load_scale_state, scale_state
 from avq.agents.base import BaseAgent
 
@@ -362,19 +362,21 @@ class ScaledMetric(BaseAgent):
         due = self.reweight_when_full and full and not self._weighted
         return (due and self._reweight(inv_scale)) or changed
 
-    def _settled_values(self) -> tuple[np.ndarray, np.ndarray]:
+    def _settled_values(self) -> tuple[np.ndarray, np.ndarray, int]:
         """The vectors (observation units, ``(p, n)``) and planned values (``(p,)``) of the cells whose every
-        decision is known: what ``reweight_when_full`` fits the slopes to. Given by the agents that take it."""
+        decision is known, and the number of all the cells: what ``reweight_when_full`` fits the slopes to. Given by
+        the agents that take it."""
         raise NotImplementedError(f"{type(self).__name__} does not learn its metric's weights from its values")
 
     def _reweight(self, inv_scale: np.ndarray) -> bool:
-        """``reweight_when_full``: once :data:`~avq.agents._value_weights.MIN_CELLS` cells are settled, weight each
-        dimension of the metric (those it counts) by the slope of their values along it
-        (:func:`~avq.agents._value_weights.slope_weights`): its scale, and the factor that ``scale="auto"``'s
-        estimates keep, divided by the weight. Returns whether it did (else it is tried again at the next call)."""
-        vectors, values = self._settled_values()
+        """``reweight_when_full``: once :data:`~avq.agents._value_weights.MIN_CELLS` cells are settled, and at least
+        :data:`~avq.agents._value_weights.SETTLED_SHARE` of all the cells, weight each dimension of the metric (those
+        it counts) by the slope of their values along it (:func:`~avq.agents._value_weights.slope_weights`): its
+        scale, and the factor that ``scale="auto"``'s estimates keep, divided by the weight. Returns whether it did
+        (else it is tried again at the next call)."""
+        vectors, values, cells = self._settled_values()
         live = inv_scale > 0
-        if len(values) < MIN_CELLS or not live.any():
+        if len(values) < max(MIN_CELLS, SETTLED_SHARE * cells) or not live.any():
             return False
         self._weights[live] = slope_weights(value_slopes(vectors[:, live] * inv_scale[live], values))
         self._weighted = True

@@ -104,10 +104,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             dimension that the observation before does not predict (drawn afresh each step: ``avq.agents._noise``),
             or whose change it does not (a slow drift), gets an infinite scale, so the distance and the cells ignore
             it; a drifting one gets its scale back if, after 30,000 observations, it is found to matter.
-        reweight_when_full: Once the codebook holds ``max_cells``, at the end of the episode (and of the next ones
-            until at least 20 cells have every decision known): weight each dimension of the metric by the slope of
-            those cells' planned values along it, finer where the value changes fast (src/avq/agents/_value_weights.py).
-            Once; the cells then keep their vectors, and the model follows its transitions into the new cells.
+        reweight_when_full: Once the codebook holds ``max_cells``, at the end of the first episode at which three
+            quarters of the cells (and at least 20) have every decision known: weight each dimension of the metric by
+            the slope of those cells' planned values along it, finer where the value changes fast
+            (src/avq/agents/_value_weights.py). Once; the cells keep their vectors, and the model follows its
+            transitions into the new cells.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its cell,
             at an observation farther than ``d_min`` from every vector, ends there, and that observation becomes a
@@ -364,11 +365,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         core.end_record(self._ag.S, self._ag.F, row)
         return episode_record(*row)
 
-    def _settled_values(self) -> tuple[np.ndarray, np.ndarray]:
+    def _settled_values(self) -> tuple[np.ndarray, np.ndarray, int]:
         m, n = self._model.a, self.n_cells
         values = m.Q[:n].max(axis=1)
         settled = ((m.cnt[:n] - m.cint[:n]) >= m.C[_model.KNOWN]).all(axis=1) & (values > self.v_min)
-        return self._ag.V[:n][settled], values[settled]
+        return self._ag.V[:n][settled], values[settled], n
 
     # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------
     def _fused_runner(self):
