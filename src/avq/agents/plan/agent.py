@@ -366,9 +366,10 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return episode_record(*row)
 
     def _settled_values(self) -> tuple[np.ndarray, np.ndarray, int]:
-        m, n = self._model.a, self.n_cells
-        values = m.Q[:n].max(axis=1)
-        settled = ((m.cnt[:n] - m.cint[:n]) >= m.C[_model.KNOWN]).all(axis=1) & (values > self.v_min)
+        n, settled = self.n_cells, np.zeros(self.n_cells, dtype=np.bool_)
+        core.settled_cells(self._model.a, n, settled)
+        values = self._model.a.Q[:n].max(axis=1)
+        settled &= values > self.v_min
         return self._ag.V[:n][settled], values[settled], n
 
     # -- the fused loop (avq.agents.plan.fused) ------------------------------------------------

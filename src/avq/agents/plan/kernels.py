@@ -431,3 +431,11 @@ def end_transition(
     S[DECISIONS] += 1
     S[ACTION] = decide(ag, m, src, j, x)
     return S[ACTION]
+
+
+@njit(cache=True)
+def settled_cells(m: ModelArrays, size: int, out) -> None:  # pragma: no cover  (compiled)
+    """``out[s]``, for each cell ``s`` below ``size``: whether every decision of ``s`` is known
+    (:func:`avq.agents.plan.model.settled`)."""
+    for s in range(size):
+        out[s] = settled(m, s)
