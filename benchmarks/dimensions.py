@@ -17,7 +17,10 @@ an exponential:
   4,096 (8 tilings of 8^d tiles); ``grid-ps`` has one bin per move on every axis, ``ceil(1 / move)^d`` bins,
   and is skipped (a note printed) where that is more than 2,000,000 (d = 8). SlabMaze has no entry of its own
   in the agents' defaults: ``avq`` is the planning agent with its general ones; ``avq-axis`` is ``avq`` with
-  ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8.
+  ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8. With ``--start fixed``
+  (parti-game's protocol) every episode starts at the maze's fixed start near the corner ``(0, ..., 0)``, and a
+  run reaches when the greedy walk from there ends in the goal: ``OUT/data/dimensions_fixed.csv``, drawn in no
+  figure.
 * ``--irrelevant``: MountainCar-v0 and CartPole-v1 with k = 0, 2, 4, 8 noise dimensions appended
   (``avq.envs.IrrelevantDims``), 300 episodes. Every k gets the agent's defaults for the task itself (which
   ``make_agent`` would replace by the general ones on a wrapped task), per-dimension settings extended over
@@ -34,6 +37,7 @@ Q-network's parameters. Rows of agents not run are kept from the CSV, so that an
     python benchmarks/dimensions.py --irrelevant                # docs/data/dimensions_irrelevant.csv
     python benchmarks/dimensions.py --plot                      # docs/figures/dimensions*.png, the fits
     python benchmarks/dimensions.py --dims --agents dqn         # add DQN's rows
+    python benchmarks/dimensions.py --dims --start fixed        # docs/data/dimensions_fixed.csv
     python benchmarks/dimensions.py --quick --dims --irrelevant --plot --jobs 1 --out /tmp/dims   # a check
 """
 
@@ -218,9 +222,9 @@ def grid_bins(d: int) -> int:
     return math.ceil(1.0 / MOVE - 1e-9) ** d
 
 
-def dims_run(name: str, d: int, seed: int, budget: int) -> dict:
+def dims_run(name: str, d: int, seed: int, budget: int, start: str = "random") -> dict:
     t0 = time.perf_counter()
-    env = gym.make("avq/SlabMaze-v0", dims=d, move=MOVE, layout_seed=d)
+    env = gym.make("avq/SlabMaze-v0", dims=d, move=MOVE, layout_seed=d, start=start)
     maze = env.unwrapped
     if name == "dqn":
         agent = ZooDQN(env, "avq/SlabMaze-v0", seed, budget)
@@ -229,8 +233,11 @@ def dims_run(name: str, d: int, seed: int, budget: int) -> dict:
         if name == "grid-ps":
             overrides.update(bins=math.ceil(1.0 / MOVE - 1e-9), max_states=grid_bins(d))
         agent = avq.make_agent(REGISTERED.get(name, name), env, seed=seed, **overrides)
-    starts = maze.start_positions(EVAL_STARTS, seed=EVAL_SEED)
-    reached, success, learning = learn_until(agent, lambda a: greedy_success(a, maze, starts), budget, TARGET)
+    if start == "fixed":  # (the one walk of a deterministic maze: it reaches the goal or not)
+        starts, target = maze.reset()[0][None, :], 1.0
+    else:
+        starts, target = maze.start_positions(EVAL_STARTS, seed=EVAL_SEED), TARGET
+    reached, success, learning = learn_until(agent, lambda a: greedy_success(a, maze, starts), budget, target)
     steps = agent.num_timesteps
     return dict(
         agent=name, d=d, states=maze.full_resolution_states, seed=seed, reached=reached, env_steps=steps,
@@ -340,9 +347,10 @@ def censored_median(steps: list[float], reached: list[bool]) -> tuple[float, boo
     return (float(order), False) if np.isfinite(order) else (float(np.median(steps)), True)
 
 
-def dims_table(rows: list[dict]) -> None:
+def dims_table(rows: list[dict], level: str = "90%") -> None:
     print(
-        "| d | states | agent | reached 90% | env steps to 90%: median [range] | cells | last success | steps/s | s/run |"
+        f"| d | states | agent | reached {level} | env steps to {level}: median [range] | cells | last success | steps/s "
+        "| s/run |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for d in sorted({r["d"] for r in rows}):
@@ -502,6 +510,7 @@ def main() -> None:
     ap.add_argument("--budget", type=int, default=None, help="--dims: env steps a run (200,000; --quick 20,000)")
     ap.add_argument("--episodes", type=int, default=None, help="--irrelevant: episodes a run (300; --quick 60)")
     ap.add_argument("--kind", choices=("noise", "walk"), default="noise", help="--irrelevant: IrrelevantDims' kind")
+    ap.add_argument("--start", choices=("random", "fixed"), default="random", help="--dims: SlabMaze's start")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs", help="CSVs in OUT/data, figures in OUT/figures (default docs)")
     args = ap.parse_args()
@@ -526,15 +535,16 @@ def main() -> None:
             for name, d in [(n, d) for n in names for d in ds if n == "grid-ps" and grid_bins(d) > MAX_BINS]:
                 print(f"note: {name} skipped at d = {d}: {grid_bins(d):.0e} bins (one per move a dimension)")
             jobs = [
-                delayed(dims_run)(n, d, s, budget)
+                delayed(dims_run)(n, d, s, budget, args.start)
                 for d in ds
                 for n in names
                 for s in seeds
                 if n != "grid-ps" or grid_bins(d) <= MAX_BINS
             ]
             print(f"{len(jobs)} runs: SlabMaze d {ds}, seeds {seeds}, budget {budget:,} env steps")
-            rows = write_csv(out / "data" / "dimensions.csv", DIMS_FIELDS, finished(args.jobs, jobs), ("agent", "d"))
-            dims_table(rows)
+            csv_name = "dimensions.csv" if args.start == "random" else "dimensions_fixed.csv"
+            rows = write_csv(out / "data" / csv_name, DIMS_FIELDS, finished(args.jobs, jobs), ("agent", "d"))
+            dims_table(rows, "90%" if args.start == "random" else "the goal")
         else:
             ks = [int(v) for v in args.k.split(",")] if args.k else QUICK_KS if args.quick else KS
             episodes = args.episodes or (60 if args.quick else 300)
