@@ -21,7 +21,7 @@ def two_groups(axis_share):
     remember(agent, (1.0, 1.5), 0, (1.2, 1.5), -1.0)
     remember(agent, (3.0, 2.5), 0, (20.0, 20.0), -1.0)
     share = -1.0 if axis_share is None else axis_share
-    c = core.split_cell(agent._ag, agent._model.a, 0, 0, np.array([1.0, 1.5]), np.array([3.0, 2.5]), share)
+    c = core.split_cell(agent._ag, agent._model.a, 0, 0, np.array([1.0, 1.5]), np.array([3.0, 2.5]), share, agent.d_min)
     return agent, c
 
 

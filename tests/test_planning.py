@@ -286,7 +286,7 @@ def test_split_cell_cuts_the_cell_around_the_two_starts_and_moves_its_transition
     for xs, x in (((1, 1), (3, 1)), ((2, 1), (4, 1)), ((1, 3), (3, 4))):
         remember(agent, xs, 1, x, -1.0)
     assert agent._ag.mem_i[:3].tolist() == [[1, 0, 0, 0], [1, 0, 0, 0], [1, 0, 1, 0]]
-    c = core.split_cell(agent._ag, agent._model.a, 0, 1, np.array([1.0, 1.0]), np.array([1.0, 3.0]), -1.0)
+    c = core.split_cell(agent._ag, agent._model.a, 0, 1, np.array([1.0, 1.0]), np.array([1.0, 3.0]), -1.0, agent.d_min)
     assert c == 2
     # Each successor's transitions go with the seed nearer their mean start: cell 0's (mean (1.5, 1)) with
     # (1, 1), cell 1's ((1, 3)) with (1, 3). The cell's vector moves to (1.5, 1); (1, 3) is the new cell.
@@ -308,8 +308,12 @@ def test_split_cell_refuses_mean_starts_within_d_min_of_each_other():
     remember(agent, (1, 1), 0, (20, 20), -10.0)
     remember(agent, (2, 2), 0, (2, 1), -1.0)
     before = agent._ag.V[:2].copy()
-    assert core.split_cell(agent._ag, agent._model.a, 0, 0, np.array([1.0, 1.0]), np.array([2.0, 2.0]), -1.0) == -1
+    seeds = (np.array([1.0, 1.0]), np.array([2.0, 2.0]))
+    assert core.split_cell(agent._ag, agent._model.a, 0, 0, *seeds, -1.0, agent.d_min) == -1
     assert np.array_equal(agent._ag.V[:2], before) and agent.n_cells == 2
+    # A floor below d_min (the outcome split's, once halved twice: finer_when_settled) lets it through.
+    assert core.split_cell(agent._ag, agent._model.a, 0, 0, *seeds, -1.0, agent.d_min / 4) == 2
+    assert agent._ag.V[2].tolist() == [2.0, 2.0]
 
 
 def test_avq_plan_grows_few_cells_and_solves_the_paper_maze():
@@ -339,7 +343,9 @@ def test_split_cell_refuses_a_mean_start_within_d_min_of_another_vector():
         for xs, x in (((1, 2), (1, 1)), ((3, 1), (2, 5)), ((3, 3), (2, 5))):
             assert remember(agent, xs, 0, x, -1.0)[0] == 0
         before = agent._ag.V[: agent.n_cells].copy()
-        got = core.split_cell(agent._ag, agent._model.a, 0, 0, np.array([1.0, 2.0]), np.array([3.0, 1.0]), -1.0)
+        got = core.split_cell(
+            agent._ag, agent._model.a, 0, 0, np.array([1.0, 2.0]), np.array([3.0, 1.0]), -1.0, agent.d_min
+        )
         assert got == expected
         if expected < 0:
             assert np.array_equal(agent._ag.V[: agent.n_cells], before) and agent.n_cells == 3

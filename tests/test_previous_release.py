@@ -32,6 +32,8 @@ ADDED_PARAMS["compose_crossings"] = False
 #: And the metric weighted by the values' slopes once the codebook is full (a file without it loads with it off;
 #: its weights are saved once applied).
 ADDED_PARAMS["reweight_when_full"] = False
+#: And the floor of the growth from decisions halving as the cells settle (off; its count is a last entry of S).
+ADDED_PARAMS["finer_when_settled"] = 0
 ADDED_ARRAYS = {"m_cint", "episode_rewards", "noise_dims", "drift_dims", "drift_scale"}
 GREW = {"S", "mem_i"}
 PAIRS = sorted({re.sub(r"__\d+\.zip$", "", p.name) for p in DATA.glob("*.zip")})

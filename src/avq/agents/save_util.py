@@ -43,7 +43,9 @@ _READABLE_VERSIONS = (1, 2)
 #: Parameters added since a file may have been written whose default now behaves otherwise: a file without one
 #: loads with the value that keeps what it did (ignore_noise: the noise test of avq.agents._noise, off before;
 #: compose_crossings: "noise" now, off before; reweight_when_full: on now, off before).
-ADDED_SINCE: dict[str, Any] = {"ignore_noise": False, "compose_crossings": False, "reweight_when_full": False}
+ADDED_SINCE: dict[str, Any] = {
+    "ignore_noise": False, "compose_crossings": False, "reweight_when_full": False, "finer_when_settled": 0
+}  # fmt: skip
 
 
 def _env_make_args(env: gym.Env) -> dict[str, Any] | None:

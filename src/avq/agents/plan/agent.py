@@ -106,9 +106,11 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             it; a drifting one gets its scale back if, after 30,000 observations, it is found to matter.
         reweight_when_full: Once the codebook holds ``max_cells``, at the end of the first episode at which three
             quarters of the cells (and at least 20) have every decision known: weight each dimension of the metric by
-            the slope of those cells' planned values along it, finer where the value changes fast
-            (src/avq/agents/_value_weights.py). Once; the cells keep their vectors, and the model follows its
-            transitions into the new cells.
+            the slope of those cells' planned values along it, finer where the value changes fast, once
+            (src/avq/agents/_value_weights.py); the model follows its transitions into the cells of the new metric.
+        finer_when_settled: How many times, at most, the floor of the growth from decisions (``split_after``, the outcome
+            split) halves from ``d_min``, each when 90% of the cells (and 20) have every decision known at an episode's
+            end (src/avq/agents/plan/resolution.py). 0: it stays ``d_min``.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its cell,
             at an observation farther than ``d_min`` from every vector, ends there, and that observation becomes a
@@ -173,6 +175,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         ignore_noise: bool = True,
         reweight_when_full: bool = True,
+        finer_when_settled: int = 2,
         max_cells: int = 2048,
         split_after: int | None = 5,
         rho: float | None = None,
@@ -201,6 +204,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         self.value_slope = check_optional(check_range, "value_slope", value_slope, 0.0, np.inf, high_open=True)
         self.memory = check_int("memory", memory, 1)
         self.max_cells = check_int("max_cells", max_cells, 1)
+        self.finer_when_settled = check_int("finer_when_settled", finer_when_settled, 0)
         self.split_after = check_optional(check_int, "split_after", split_after, 1)
         self.rho = check_optional(check_range, "rho", rho, 0.0, np.inf, high_open=True)
         self.merge_neighbours = check_int("merge_neighbours", merge_neighbours, 1)
@@ -351,9 +355,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
 
     def _end_episode(self) -> EpisodeRecord:
         if self._refresh_metric(self._spread, self._ag.inv_scale, self.n_cells >= self.max_cells):
-            # scale="auto", the noise test or reweight_when_full changed the metric, so the cells of the remembered transitions
-            # may have; the model follows them (the codebook keeps its vectors in observation units), composing held
-            # crossings once the noise test has left dimensions out.
+            # The metric changed (scale="auto", the noise test, reweight_when_full): the model follows the remembered
+            # transitions into their cells (vectors in observation units), composing held crossings once noise is out.
             memory.relocate(self._ag, self._model.a, -1, -1, bool(np.isinf(self._scale).any()))
             self._ag.S[GEOM] += 1
         if self.v_opt == "auto":

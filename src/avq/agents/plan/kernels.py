@@ -45,6 +45,7 @@ from avq.agents.plan.explore import decide
 from avq.agents.plan.memory import record_with_start, relocate, remember, start_after_growth, successor
 from avq.agents.plan.merge import merge_pass, value_slope
 from avq.agents.plan.model import CONT, ModelArrays, known as known_pair, settled
+from avq.agents.plan.resolution import decision_floor, refine_when_settled
 from avq.agents.plan.state import (
     ACTION,
     APPENDS,
@@ -122,16 +123,17 @@ def append_cell(ag: PlanArrays, m: ModelArrays, x) -> int:
 
 
 @njit(cache=True)
-def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, axis_share: float) -> int:
+def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, axis_share: float, floor: float) -> int:
     """Cut cell ``i`` in two around two starts of decision ``a`` whose outcomes disagree: the transitions of
     each successor of ``(i, a)`` go with the nearer of ``seed_1`` and ``seed_2`` to their mean start; the
     cell's vector moves to the mean start of the first group and the mean start of the second becomes a
     new cell. Where one axis carries at least ``axis_share`` of the squared scaled distance between the two
     means (0: always; below 0: never), the cut is across that axis alone: the two vectors are the cell's own,
     moved along that axis to the two means' coordinates on it. Returns the new
-    cell, or -1 (nothing changed) when a group is empty or a mean lies within ``d_min`` of the other or of
-    another vector (no vector within ``d_min`` of another; docs: explanation/paper.md, Growing)."""
-    V, inv_scale, e_xs, d_min = ag.V, ag.inv_scale, ag.e_xs, ag.P[PlanParam.D_MIN]
+    cell, or -1 (nothing changed) when a group is empty or a mean lies within ``floor`` (``d_min``, or the outcome
+    split's :func:`~avq.agents.plan.resolution.decision_floor`) of the other or of another vector (docs:
+    explanation/paper.md, Growing)."""
+    V, inv_scale, e_xs, d_min = ag.V, ag.inv_scale, ag.e_xs, floor
     n = V.shape[1]
     g1 = np.zeros(n)
     g2 = np.zeros(n)
@@ -203,7 +205,7 @@ def cut_at_collision(ag: PlanArrays, m: ModelArrays, i: int, a: int, x) -> int:
         e = m.e_next[e]
     if best < 0:
         return -1
-    return split_cell(ag, m, i, a, x, ag.e_xs[best] / most, 0.0)
+    return split_cell(ag, m, i, a, x, ag.e_xs[best] / most, 0.0, ag.P[PlanParam.D_MIN])
 
 
 @njit(cache=True, inline="always")
@@ -304,8 +306,8 @@ def goes_on(ag: PlanArrays, r: float, j: int, d2: float, collision: bool, done: 
     """Count a step of reward ``r`` into the current decision's aggregate transition, and whether the
     decision goes on: the step stayed in the cell (``j``, the nearest vector, at squared distance ``d2``),
     without a collision, and the episode goes on (docs: explanation/paper.md, Acting); and
-    (``split_after``) it has not yet stayed that many steps in the cell while ``x`` lies farther than
-    ``d_min`` from every vector, where :func:`end_transition` gives ``x`` a cell of its own. When it does
+    (``split_after``) it has not yet stayed that many steps in the cell while ``x`` lies farther than the
+    floor (:func:`~avq.agents.plan.resolution.decision_floor`) from every vector, where :func:`end_transition` gives ``x`` a cell of its own. When it does
     not, :func:`end_transition` follows."""
     P, IP, S, F = ag.P, ag.IP, ag.S, ag.F
     S[EP_STEPS] += 1
@@ -315,7 +317,7 @@ def goes_on(ag: PlanArrays, r: float, j: int, d2: float, collision: bool, done: 
     F[EP_RETURN] += r
     if not decision_goes_on(j == S[CELL], collision, done):
         return False
-    if stayed_too_long(S[DEC_STEPS], IP[PlanIntParam.SPLIT_AFTER], d2, P[PlanParam.D_MIN]):
+    if stayed_too_long(S[DEC_STEPS], IP[PlanIntParam.SPLIT_AFTER], d2, decision_floor(P, S)):
         if S[SIZE] < IP[PlanIntParam.MAX_CELLS]:
             return False
         if not S[DEC_REFUSED]:
@@ -342,7 +344,7 @@ def end_transition(
     # The aggregate transition (i, a) -> j has ended.
     split_after = IP[PlanIntParam.SPLIT_AFTER]
     if j == i and not (collision or done) and split_after > 0 and S[DEC_STEPS] >= split_after:
-        # The decision stayed split_after steps in its cell and x lies farther than d_min from every vector
+        # The decision stayed split_after steps in its cell and x lies farther than the floor from every vector
         # (goes_on): the cell is too large for one decision there; x gets a cell of its own.
         j = append_cell(ag, m, x)
         S[SPLITS] += 1
@@ -409,7 +411,7 @@ def end_transition(
                     bar = Q[i, b]
             if split_matters(other[n], bar):
                 if S[SIZE] < max_cells:
-                    if split_cell(ag, m, i, a, xs, other[:n], P[PlanParam.AXIS_SHARE]) >= 0:
+                    if split_cell(ag, m, i, a, xs, other[:n], P[PlanParam.AXIS_SHARE], decision_floor(P, S)) >= 0:
                         S[SPLITS] += 1
                         j, _ = nearest_index(V, S[SIZE], x, inv_scale)  # (the vectors moved)
                 else:
@@ -418,6 +420,7 @@ def end_transition(
     if done:
         S[IN_EPISODE] = 0
         S[MERGES] = merge_pass(ag, m)  # (docs: explanation/paper.md, Merging; avq.agents.plan.merge)
+        refine_when_settled(ag, m, IP[PlanIntParam.FINER_WHEN_SETTLED])
         return ENDED
     S[PREV_CELL] = i
     S[PREV_KNOWN] = known

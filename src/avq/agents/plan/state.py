@@ -66,6 +66,7 @@ class PlanIntParam(ParamIndex):
     MERGE_SAME_ACTION = auto()  # merging: only cells whose greedy actions agree
     COLLISION_CUT = auto()  # growth: a collision cuts its cell across one axis (collision_cut)
     COMPOSE_CROSSINGS = auto()  # crossings remembered: 0 no; memory.COMPOSED (compose_crossings, rho); memory.HELD
+    FINER_WHEN_SETTLED = auto()  # how many times the floor of the growth from decisions may halve
 
 
 # S: int state
@@ -75,7 +76,8 @@ PREV_CELL, PREV_KNOWN = 12, 13  # the cell of the decision before the current on
 DEC_STEPS = 14  # the primitive steps taken so far with the current decision
 DEC_REFUSED = 15  # whether split_after's growth was refused during the current decision (counted once)
 MERGES = 16  # cells merged at the end of the current episode
-N_S = 17
+FINER = 17  # times the floor of the growth from decisions has halved (finer_when_settled; avq.agents.plan.resolution)
+N_S = 18
 # F: float state
 RET, DISC, EP_RETURN, SLOPE_SUM, SLOPE_N = range(5)
 N_F = 5
@@ -120,17 +122,18 @@ def no_neighbours(cap: int, k: int) -> np.ndarray:
     return np.full((cap + 1, k), -1, dtype=np.int64)
 
 
-#: Arrays of a model file that grew with merging (avq 0.2), and their last dimension before it.
-_GREW = {"S": 16, "mem_i": 3}
+#: Arrays of a model file that grew since, and their last dimensions before: with merging (avq 0.2) and
+#: finer_when_settled.
+_GREW = {"S": (16, 17), "mem_i": (3,)}
 
 
 def load_state_arrays(ag: PlanArrays, arrays: dict[str, np.ndarray]) -> None:
     """Copy a saved agent's state and memory (``S``, ``F``, ``xs``, ``mem_x``, ``mem_i``, ``mem_f``) into ``ag``'s
-    arrays of the same shapes; a file from before merging, whose ``S`` and ``mem_i`` were narrower, gets 0 in the
+    arrays of the same shapes; a file from before, whose ``S`` or ``mem_i`` was narrower (``_GREW``), gets 0 in the
     entries added since. Raises ValueError for an array of another shape."""
     for name in ("S", "F", "xs", "mem_x", "mem_i", "mem_f"):
         mine, theirs = getattr(ag, name), arrays[name]
-        if name in _GREW and theirs.shape[:-1] == mine.shape[:-1] and theirs.shape[-1] == _GREW[name]:
+        if name in _GREW and theirs.shape[:-1] == mine.shape[:-1] and theirs.shape[-1] in _GREW[name]:
             mine[:] = 0
             mine[..., : theirs.shape[-1]] = theirs
             continue
