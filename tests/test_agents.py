@@ -378,14 +378,15 @@ def test_avq_has_maze_defaults_on_the_mazes_and_general_defaults_elsewhere():
         "epsilon": 0.01,
         "scale_factor": [1.0, 1.0, 0.5, 0.5],
     }
-    # Acrobot-v1's: every dimension's scale estimated, the four components of the angles a third as weighty, and
-    # untried decisions worth the return at which Gymnasium calls the task solved.
+    # Acrobot-v1's: every dimension's scale estimated, the four components of the angles a third as weighty,
+    # untried decisions worth the return at which Gymnasium calls the task solved, and the cells' floor kept at d_min.
     acrobot = avq.make_agent("avq", "Acrobot-v1")
     assert agent_defaults("avq", "Acrobot-v1") == {
         **AGENTS["avq"][1],
         "scale": "spread",
         "scale_factor": [3.0, 3.0, 3.0, 3.0, 1.0, 1.0],
         "v_opt": gym.spec("Acrobot-v1").reward_threshold,
+        "finer_when_settled": 0,
     }
     assert acrobot.v_opt_ == -100.0
     high = acrobot.env.observation_space.high.astype(np.float64)
