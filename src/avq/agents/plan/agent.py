@@ -108,9 +108,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             quarters of the cells (and at least 20) have every decision known: weight each dimension of the metric by
             the slope of those cells' planned values along it, finer where the value changes fast, once
             (src/avq/agents/_value_weights.py); the model follows its transitions into the cells of the new metric.
-        finer_when_settled: How many times, at most, the floor of the growth from decisions (``split_after``, the outcome
-            split) halves from ``d_min``, each when 90% of the cells (and 20) have every decision known at an episode's
-            end (src/avq/agents/plan/resolution.py). 0: it stays ``d_min``.
+        finer_when_settled: How many times, at most, the floor of the growth from decisions (``split_after``, the
+            outcome split) halves from ``d_min``, each when 90% of the cells (and 20) have every decision known at an
+            episode's end (src/avq/agents/plan/resolution.py). 0: it stays ``d_min``.
         max_cells: Upper bound on the codebook size; growth past it is refused (counted in ``refused``).
         split_after: Growth for tasks without collisions: a decision that has stayed this many steps in its cell,
             at an observation farther than ``d_min`` from every vector, ends there, and that observation becomes a

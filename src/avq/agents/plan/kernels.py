@@ -307,8 +307,8 @@ def goes_on(ag: PlanArrays, r: float, j: int, d2: float, collision: bool, done: 
     decision goes on: the step stayed in the cell (``j``, the nearest vector, at squared distance ``d2``),
     without a collision, and the episode goes on (docs: explanation/paper.md, Acting); and
     (``split_after``) it has not yet stayed that many steps in the cell while ``x`` lies farther than the
-    floor (:func:`~avq.agents.plan.resolution.decision_floor`) from every vector, where :func:`end_transition` gives ``x`` a cell of its own. When it does
-    not, :func:`end_transition` follows."""
+    floor (:func:`~avq.agents.plan.resolution.decision_floor`) from every vector, where :func:`end_transition`
+    gives ``x`` a cell of its own. When it does not, :func:`end_transition` follows."""
     P, IP, S, F = ag.P, ag.IP, ag.S, ag.F
     S[EP_STEPS] += 1
     S[DEC_STEPS] += 1

@@ -32,8 +32,9 @@ def decision_floor(P: np.ndarray, S: np.ndarray) -> float:
 
 @njit(cache=True)
 def refine_when_settled(ag: PlanArrays, m: ModelArrays, limit: int) -> bool:
-    """At an episode's end (:func:`avq.agents.plan.kernels.end_transition`, in both loops): halve the floor (``S[FINER] += 1``) if it has halved fewer than ``limit`` times and at
-    least :data:`FINER_SHARE` of the cells, and :data:`MIN_CELLS`, are settled. Whether it did."""
+    """At an episode's end (:func:`avq.agents.plan.kernels.end_transition`, in both loops): halve the floor
+    (``S[FINER] += 1``) if it has halved fewer than ``limit`` times and at least :data:`FINER_SHARE` of the cells,
+    and :data:`MIN_CELLS`, are settled. Whether it did."""
     n = ag.S[SIZE]
     if ag.S[FINER] >= limit or n < MIN_CELLS:
         return False
