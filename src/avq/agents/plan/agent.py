@@ -14,7 +14,7 @@ from avq.agents import _maze_loop
 from avq.agents._params import pack_params
 from avq.agents._spaces import ScaledMetric
 from avq.agents.base import EpisodeRecord, episode_record
-from avq.agents.plan import kernels as core, memory, model as _model
+from avq.agents.plan import kernels as core, memory, model as _model, resolution
 from avq.agents.plan.fused import run_plan_maze
 from avq.agents.plan.state import (
     ACTION,
@@ -370,7 +370,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
 
     def _settled_values(self) -> tuple[np.ndarray, np.ndarray, int]:
         n, settled = self.n_cells, np.zeros(self.n_cells, dtype=np.bool_)
-        core.settled_cells(self._model.a, n, settled)
+        resolution.settled_cells(self._model.a, n, settled)
         values = self._model.a.Q[:n].max(axis=1)
         settled &= values > self.v_min
         return self._ag.V[:n][settled], values[settled], n

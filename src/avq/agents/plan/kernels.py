@@ -133,7 +133,7 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, a
     cell, or -1 (nothing changed) when a group is empty or a mean lies within ``floor`` (``d_min``, or the outcome
     split's :func:`~avq.agents.plan.resolution.decision_floor`) of the other or of another vector (docs:
     explanation/paper.md, Growing)."""
-    V, inv_scale, e_xs, d_min = ag.V, ag.inv_scale, ag.e_xs, floor
+    V, inv_scale, e_xs = ag.V, ag.inv_scale, ag.e_xs
     n = V.shape[1]
     g1 = np.zeros(n)
     g2 = np.zeros(n)
@@ -178,10 +178,10 @@ def split_cell(ag: PlanArrays, m: ModelArrays, i: int, a: int, seed_1, seed_2, a
             if d != axis:
                 g1[d] = V[i, d]
                 g2[d] = V[i, d]
-    if not np.sqrt(gap) > d_min:
+    if not np.sqrt(gap) > floor:
         return -1
-    for k in range(ag.S[SIZE]):  # no vector within d_min of another (docs: explanation/paper.md, Growing)
-        if k != i and (scaled_distance(V, k, g1, inv_scale) <= d_min or scaled_distance(V, k, g2, inv_scale) <= d_min):
+    for k in range(ag.S[SIZE]):  # no vector within the floor of another (docs: explanation/paper.md, Growing)
+        if k != i and (scaled_distance(V, k, g1, inv_scale) <= floor or scaled_distance(V, k, g2, inv_scale) <= floor):
             return -1
     for d in range(n):
         V[i, d] = g1[d]
@@ -434,11 +434,3 @@ def end_transition(
     S[DECISIONS] += 1
     S[ACTION] = decide(ag, m, src, j, x)
     return S[ACTION]
-
-
-@njit(cache=True)
-def settled_cells(m: ModelArrays, size: int, out) -> None:  # pragma: no cover  (compiled)
-    """``out[s]``, for each cell ``s`` below ``size``: whether every decision of ``s`` is known
-    (:func:`avq.agents.plan.model.settled`)."""
-    for s in range(size):
-        out[s] = settled(m, s)

@@ -18,10 +18,18 @@ from avq.agents._value_weights import MIN_CELLS
 from avq.agents.plan.model import ModelArrays, settled
 from avq.agents.plan.state import FINER, SIZE, PlanArrays, PlanParam
 
-__all__ = ["FINER_SHARE", "decision_floor", "refine_when_settled"]
+__all__ = ["FINER_SHARE", "decision_floor", "refine_when_settled", "settled_cells"]
 
 #: The share of the cells with every decision known at which the floor halves.
 FINER_SHARE = 0.9
+
+
+@njit(cache=True)
+def settled_cells(m: ModelArrays, size: int, out) -> None:  # pragma: no cover  (compiled)
+    """``out[s]``, for each cell ``s`` below ``size``: whether every decision of ``s`` is known
+    (:func:`avq.agents.plan.model.settled`): what this rule and ``reweight_when_full`` count."""
+    for s in range(size):
+        out[s] = settled(m, s)
 
 
 @njit(cache=True, inline="always")
@@ -38,10 +46,9 @@ def refine_when_settled(ag: PlanArrays, m: ModelArrays, limit: int) -> bool:
     n = ag.S[SIZE]
     if ag.S[FINER] >= limit or n < MIN_CELLS:
         return False
-    count = 0
-    for s in range(n):
-        count += settled(m, s)
-    if count < FINER_SHARE * n:
+    out = np.zeros(n, dtype=np.bool_)
+    settled_cells(m, n, out)
+    if out.sum() < FINER_SHARE * n:
         return False
     ag.S[FINER] += 1
     return True
