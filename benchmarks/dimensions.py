@@ -308,8 +308,18 @@ def read_csv(path: Path) -> list[dict]:
     for r in rows:
         for key, v in r.items():
             if key not in ("agent", "task"):
-                r[key] = None if v == "" else v == "True" if v in ("True", "False") else (float if "." in v else int)(v)
+                r[key] = _value(v)
     return rows
+
+
+def _value(text: str):
+    """A CSV field as a number, a bool or None (empty); a word (``v_opt``'s "auto") as it is."""
+    if text in ("", "True", "False"):
+        return None if text == "" else text == "True"
+    try:
+        return (float if "." in text or "e" in text.lower() else int)(text)
+    except ValueError:
+        return text
 
 
 def finished(n_jobs: int, jobs: list) -> list[dict]:
@@ -325,8 +335,9 @@ def finished(n_jobs: int, jobs: list) -> list[dict]:
 def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict], match: tuple[str, ...]) -> list[dict]:
     """Write ``rows`` with the file's rows kept where no new row has the same ``match`` fields (an agent at a d, say:
     so that agents and dimensions can be added one at a time); return them all."""
-    ran = {tuple(str(r[k]) for k in match) for r in rows}
-    old = [r for r in read_csv(path) if tuple(str(r[k]) for k in match) not in ran]  # (read back: numbers)
+    key = lambda r: tuple("" if r[k] is None else str(r[k]) for k in match)  # noqa: E731  (an empty field is None)
+    ran = {key(r) for r in rows}
+    old = [r for r in read_csv(path) if key(r) not in ran]  # (read back: numbers)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)

@@ -23,7 +23,6 @@ Writes ``OUT/optimism_seedsS.csv`` (``--out``, default ``docs/data``; ``S`` the 
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 import time
 from pathlib import Path
@@ -33,7 +32,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 sys.path.insert(0, str(Path(__file__).parent))
-from dimensions import CARTPOLE_BOUNDS, seeds_of  # noqa: E402
+from dimensions import CARTPOLE_BOUNDS, seeds_of, write_csv  # noqa: E402
 
 import avq  # noqa: E402
 
@@ -146,11 +145,8 @@ def main() -> None:
     rows = Parallel(n_jobs=args.jobs)(jobs)
     axis = "" if args.axis_share is None else f"_axis{args.axis_share:g}"
     out = Path(args.out) / f"optimism_seeds{args.seeds}{axis}.csv"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with out.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=FIELDS if args.axis_share is None else AXIS_FIELDS)
-        w.writeheader()
-        w.writerows(rows)
+    # (the file's rows of other tasks, agents or v_opt values are kept: a run of some of them adds to it)
+    write_csv(out, FIELDS if args.axis_share is None else AXIS_FIELDS, rows, ("task", "agent", "v_opt", "seed"))
     print(f"| task | agent | v_opt | final return (last {TAIL}), median [range] | cells | v_opt at the end |")
     print("|---|---|---|---|---|---|")
     for task in args.tasks:

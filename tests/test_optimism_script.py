@@ -48,6 +48,16 @@ def test_the_script_writes_a_row_per_configuration_and_seed(tmp_path):
         ("random", "", "0"), ("random", "", "1"),
     ]  # fmt: skip
     assert "| CartPole-v1 | avq | auto |" in out and "| CartPole-v1 | random |" in out
+    # A run of some configurations again replaces their rows and keeps the others (the baselines', "auto"'s).
+    before = {(r["agent"], r["v_opt"], r["seed"]): r for r in rows}
+    again = cmd[: cmd.index("--v-opt")] + ["--v-opt", "0", "--baselines", "--episodes", "3", "--jobs", "1"]
+    subprocess.run(again + ["--out", str(tmp_path)], capture_output=True, text=True, check=True, cwd=ROOT)
+    after = {
+        (r["agent"], r["v_opt"], r["seed"]): r for r in csv.DictReader((tmp_path / "optimism_seeds0-1.csv").open())
+    }
+    assert sorted(after) == sorted(before)  # (no row lost, none twice)
+    assert after[("avq", "0.0", "0")]["episodes"] == "3" and after[("avq", "auto", "0")]["episodes"] == "2"
+    assert after[("random", "", "1")] == before[("random", "", "1")]
 
 
 def test_axis_share_goes_to_avq_and_names_the_file(tmp_path):
