@@ -7,8 +7,8 @@ used to choose the rule, its final return unshaped).
 the entries of CartPole-v1 and Acrobot-v1 are not used) with ``v_opt`` "auto" (R-max's bound: the horizon times the largest reward
 seen) and with fixed values, beside ``tiles`` and a random policy. Per run: the final return (mean of the last
 100 episodes), the cells and ``v_opt_`` at the end; per configuration the median and range over the seeds.
-Writes ``OUT/optimism_seedsS.csv`` (``--out``, default ``docs/data``; ``S`` the ``--seeds``); LunarLander-v3 needs ``pip install
-"gymnasium[box2d]"``.
+Writes ``OUT/optimism_seedsS.csv`` (``--out``, default ``docs/data``; ``S`` the ``--seeds``), replacing the rows of the
+configurations run and keeping the file's others; LunarLander-v3 needs ``pip install "gymnasium[box2d]"``.
 
     python benchmarks/optimism.py                                  # seeds 0-2: 5 min on 2 cores
     python benchmarks/optimism.py --seeds 10-19 --tasks LunarLander-v3 --v-opt auto 0
