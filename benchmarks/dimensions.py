@@ -335,7 +335,10 @@ def finished(n_jobs: int, jobs: list) -> list[dict]:
 def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict], match: tuple[str, ...]) -> list[dict]:
     """Write ``rows`` with the file's rows kept where no new row has the same ``match`` fields (an agent at a d, say:
     so that agents and dimensions can be added one at a time); return them all."""
-    key = lambda r: tuple("" if r[k] is None else str(r[k]) for k in match)  # noqa: E731  (an empty field is None)
+
+    def key(r: dict) -> tuple[str, ...]:  # (an empty field reads back as None)
+        return tuple("" if r[k] is None else str(r[k]) for k in match)
+
     ran = {key(r) for r in rows}
     old = [r for r in read_csv(path) if key(r) not in ran]  # (read back: numbers)
     path.parent.mkdir(parents=True, exist_ok=True)
