@@ -217,6 +217,7 @@ def test_the_own_task_how_to_runs(tmp_path, monkeypatch):
         gymnasium.registry.pop("user/Nav3D-v0", None)
     assert ran.count("train") >= 3 and ran.count("evaluate") >= 3 and ran.count("tune") >= 2
     assert (tmp_path / "nav3d-curve.png").stat().st_size > 0 and (tmp_path / "nav3d-agent.zip").is_file()
+    assert (tmp_path / "nav3d-agent_policy_0-1.png").stat().st_size > 0  # (the saved file, opened by avq plot)
     assert (tmp_path / "runs/nav3d/policy_0-1.png").stat().st_size > 0 and (tmp_path / "study.db").is_file()
     tuned = yaml.safe_load((tmp_path / "runs/nav3d-tuned/config.yml").read_text(encoding="utf-8"))
     assert (tuned["env"], tuned["episodes"]) == ("nav3d:user/Nav3D-v0", 300)

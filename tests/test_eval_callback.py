@@ -76,3 +76,43 @@ def test_bad_arguments_get_clear_errors(tmp_path):
     with pytest.raises(ValueError, match="EvalCallback"):  # other spaces than the agent's
         agent.learn(total_episodes=1, callback=EvalCallback(gym.make("CartPole-v1"), every=1))
     assert agent.num_episodes == 0
+
+
+def test_a_directory_holding_an_earlier_runs_evaluations_is_refused_and_kept(tmp_path):
+    env_id = "MountainCar-v0"
+    first = EvalCallback(gym.make(env_id), every=1, n_eval_episodes=1, directory=tmp_path)
+    avq.make_agent("avq", gym.make(env_id), seed=0).learn(total_episodes=3, callback=first)
+    written = {name: (tmp_path / name).read_bytes() for name in ("evaluations.csv", "best.zip")}
+    with pytest.raises(ValueError) as caught:
+        EvalCallback(gym.make(env_id), every=1, directory=tmp_path)
+    assert str(caught.value) == (
+        f"eval directory {tmp_path} holds evaluations.csv and best.zip already (an earlier run's, which this one "
+        "would replace); give another directory, or move them away to start again"
+    )
+    assert {name: (tmp_path / name).read_bytes() for name in written} == written
+    (tmp_path / "evaluations.csv").unlink()
+    with pytest.raises(ValueError, match="holds best.zip already"):
+        EvalCallback(gym.make(env_id), every=1, directory=tmp_path)
+
+
+def test_evaluate_policy_takes_an_id_and_names_a_task_or_a_seed_that_does_not_fit():
+    agent = avq.make_agent("avq", gym.make("MountainCar-v0"), seed=0).learn(total_episodes=2)
+    by_id = evaluate_policy(agent, "MountainCar-v0", 2, seed=3)
+    assert by_id["returns"] == evaluate_policy(agent, gym.make("MountainCar-v0"), 2, seed=3)["returns"]
+    with pytest.raises(ValueError, match="evaluate_policy: the agent was trained on MountainCar-v0 with"):
+        evaluate_policy(agent, "CartPole-v1", 1)
+    with pytest.raises(ValueError, match="seed must be an integer >= 0, not -1"):
+        evaluate_policy(agent, "MountainCar-v0", 1, seed=-1)
+    with pytest.raises(ValueError, match="unknown environment 'NoSuchTask-v0'"):
+        evaluate_policy(agent, "NoSuchTask-v0", 1)
+
+
+def test_evaluating_on_the_env_being_learned_on_warns_between_episodes_and_is_refused_inside_one():
+    env = gym.make("MountainCar-v0")
+    agent = avq.make_agent("avq", env, seed=0).learn(total_episodes=1)
+    with pytest.warns(UserWarning, match="the environment the agent learns on: its resets change the starts"):
+        evaluate_policy(agent, env, 1)
+    agent.learn(total_timesteps=50)  # (stops inside an episode: MountainCar's last 200 steps)
+    assert agent.in_episode
+    with pytest.raises(ValueError, match="the agent is learning an episode on; give it one of its own"):
+        evaluate_policy(agent, env, 1)

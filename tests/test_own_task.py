@@ -71,9 +71,10 @@ def test_a_module_that_is_not_there_is_named_with_the_fix(workdir):
     [
         ("x = 1 / 0\n", "importing module 'broken' failed with ZeroDivisionError: division by zero ({path}, line 1)"),
         ("import no_such_dependency_of_avq\n", "it imports 'no_such_dependency_of_avq', which is not installed"),
+        ("x = (\n", "importing module 'broken' failed with SyntaxError: '(' was never closed ({path}, line 1)"),
         ("", "unknown environment 'broken:user/Nav3D-v0' ("),
     ],
-    ids=["raises", "missing-dependency", "registers-nothing"],
+    ids=["raises", "missing-dependency", "syntax-error", "registers-nothing"],
 )
 def test_a_module_that_fails_to_import_or_to_register_is_named(workdir, source, expected):
     (workdir / "broken.py").write_text(source, encoding="utf-8")
@@ -140,3 +141,41 @@ def test_the_defaults_of_an_id_in_the_module_form_are_the_ids():
     assert agent_defaults("avq", "somewhere:CartPole-v1") == agent_defaults("avq", "CartPole-v1")
     assert agent_class("avq", "somewhere:avq/GridMaze-v0") is agent_class("avq", "avq/GridMaze-v0")
     assert defaults_key("avq", "nav3d:user/Nav3D-v0") == "*"
+
+
+def test_a_model_saved_as_the_how_to_saves_it_is_evaluated_and_plotted_from_the_command_line(workdir, monkeypatch):
+    # The how-to's way: import the module, gym.make its id, save. The file records the module of the id's entry
+    # point with the id, so that a new process imports it again.
+    monkeypatch.syspath_prepend(str(workdir))  # (as a script in the working directory imports it)
+    import nav3d  # noqa: F401  (registers user/Nav3D-v0 from the working directory)
+
+    agent = avq.make_agent("avq", gym.make("user/Nav3D-v0"), seed=0).learn(total_episodes=5)
+    path = agent.save(workdir / "nav3d-agent.zip")
+    ev = cli_subprocess("evaluate", "nav3d-agent.zip", "--episodes", "2", "--json", cwd=workdir)
+    assert ev.returncode == 0, ev.stderr
+    assert json.loads(ev.stdout)["env"] == "user/Nav3D-v0"
+    plot = cli_subprocess("plot", "nav3d-agent.zip", "--at", "2=0.5", "--resolution", "20", cwd=workdir)
+    assert plot.returncode == 0, plot.stderr
+    assert (workdir / "nav3d-agent_policy_0-1.png").is_file()
+    assert avq.load(path).env.spec.id == "user/Nav3D-v0"
+
+
+def test_a_model_whose_env_cannot_be_made_again_is_evaluated_with_env(workdir, monkeypatch):
+    monkeypatch.syspath_prepend(str(workdir))
+    import nav3d
+
+    gym.register("user/Unrecorded-v0", entry_point=lambda: nav3d.Nav3D(), max_episode_steps=50)
+    try:
+        agent = avq.make_agent("avq", gym.make("user/Unrecorded-v0"), seed=0).learn(total_episodes=3)
+    finally:
+        gym.registry.pop("user/Unrecorded-v0", None)
+    agent.save(workdir / "m.zip")
+    # (a lambda's module is this test module, which a new process imports from nowhere: the file names it anyway)
+    no_env = cli_subprocess("evaluate", "m.zip", "--episodes", "2", cwd=workdir)
+    assert no_env.returncode == 2 and "Traceback" not in no_env.stderr
+    assert "(avq evaluate and avq plot: --env ID)" in no_env.stderr
+    given = cli_subprocess(
+        "evaluate", "m.zip", "--episodes", "2", "--env", "nav3d:user/Nav3D-v0", "--json", cwd=workdir
+    )
+    assert given.returncode == 0, given.stderr
+    assert json.loads(given.stdout)["env"] == "user/Nav3D-v0"

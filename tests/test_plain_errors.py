@@ -6,6 +6,7 @@ name an agent, and a 95% interval over few seeds that says it is wide."""
 from __future__ import annotations
 
 import csv
+import sys
 import traceback
 
 import gymnasium as gym
@@ -49,10 +50,11 @@ def test_evaluate_of_a_missing_path_says_model_file_or_run_directory(tmp_path):
 def test_evaluate_of_a_stopped_run_points_at_its_checkpoint_which_evaluates(stopped_run):
     line = one_error_line(cli_in_process("evaluate", str(stopped_run)))
     checkpoint = stopped_run / "checkpoint.zip"
-    assert f"its last checkpoint can be evaluated: avq evaluate {checkpoint}" in line
+    assert f"give its last checkpoint instead, {checkpoint}, or finish" in line
     assert f"avq train --resume {stopped_run}" in line
     result = cli_in_process("evaluate", str(checkpoint), "--episodes", "2")
     assert result.returncode == 0 and result.stdout.startswith("tabular (TabularSarsa) on avq/GridMaze-v0:")
+    assert one_error_line(cli_in_process("plot", str(stopped_run))) == line  # (words that fit plot too)
 
 
 def test_evaluate_names_the_agent_and_its_class_for_a_run_and_for_its_model_file(tmp_path):
@@ -200,3 +202,42 @@ def test_a_bad_parameter_is_a_public_value_error():
     shown = traceback.format_exception_only(type(caught.value), caught.value)
     assert shown == ["avq.InvalidParameterError: alpha must be in (0.0, 1.0], not 2\n"]
     assert (caught.value.name, caught.value.value) == ("alpha", 2)
+
+
+def test_an_error_gymnasium_raises_for_its_users_is_one_line_with_exit_2(tmp_path):
+    # (as CartPole with render_mode "human" raises at its first reset without pygame: Gymnasium's message says
+    # what to install)
+    (tmp_path / "needs_extra.py").write_text(
+        "import gymnasium as gym\n"
+        "from gymnasium.envs.classic_control import CartPoleEnv\n\n\n"
+        "class NeedsExtra(CartPoleEnv):\n"
+        "    def reset(self, *, seed=None, options=None):\n"
+        "        raise gym.error.DependencyNotInstalled('pygame is not installed, run `pip install pygame`')\n\n\n"
+        "gym.register('user/NeedsExtra-v0', entry_point=NeedsExtra, max_episode_steps=50)\n",
+        encoding="utf-8",
+    )
+    try:
+        result = cli_in_process("train", "--env", "needs_extra:user/NeedsExtra-v0", "--episodes", "2", cwd=tmp_path)
+    finally:
+        gym.registry.pop("user/NeedsExtra-v0", None)
+        sys.modules.pop("needs_extra", None)
+    assert one_error_line(result) == (
+        "avq: error: the environment raised DependencyNotInstalled: pygame is not installed, run `pip install pygame`"
+    )
+
+
+def test_a_directory_given_for_a_model_file_names_the_model_file_in_it(tmp_path):
+    agent = avq.make_agent("tabular", gym.make("avq/GridMaze-v0"), seed=0).learn(total_episodes=2)
+    trial = tmp_path / "trial"  # (as a sweep's trial directory: a model.zip without avq train's config.yml)
+    trial.mkdir()
+    agent.save(trial / "model.zip")
+    with pytest.raises(ValueError) as caught:
+        avq.load(trial)
+    assert (
+        str(caught.value)
+        == f"{trial} is a directory, not a model file; give the model file in it: {trial / 'model.zip'}"
+    )
+    with pytest.raises(ValueError, match="is a directory, not a model file; give a model file written by agent.save"):
+        avq.load(tmp_path)
+    line = one_error_line(cli_in_process("evaluate", str(trial)))
+    assert line == f"avq: error: {trial}: no config.yml here; give the model file in it, {trial / 'model.zip'}"

@@ -178,6 +178,24 @@ def test_an_unbounded_dimension_without_centres_asks_for_bounds():
     assert policy_map(agent, bounds="1=-3:5", resolution=4).ys.tolist() == [-2.0, 0.0, 2.0, 4.0]
 
 
+@pytest.mark.parametrize(
+    ("given", "told"),
+    [
+        (
+            "0=3:1",
+            r"bounds of dimension 0 \(x0\): 3 to 1 is not a range to draw; give finite LOW below HIGH, "
+            r"e.g. bounds=\{0: \(1, 3\)\} \(avq plot --bounds 0=1:3\)",
+        ),
+        ("1=2:2", r"bounds of dimension 1 \(x1\): 2 to 2 is not a range.*\(avq plot --bounds 1=-3:3\)"),
+        ("1=0:inf", r"bounds of dimension 1 \(x1\): 0 to inf is not a range.*\(avq plot --bounds 1=-3:3\)"),
+    ],
+)
+def test_given_bounds_that_are_not_a_range_are_named_with_the_fix(given, told):
+    agent = HandCells([(0.0, 0.0), (2.0, 2.0)], actions=[0, 1])
+    with pytest.raises(ValueError, match=told):
+        policy_map(agent, bounds=given, resolution=4)
+
+
 def test_borders_are_drawn_between_pixels_of_different_cells():
     from avq.plotting.policy import border_segments
 

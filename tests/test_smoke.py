@@ -85,3 +85,26 @@ def test_check_env_on_every_registered_avq_env(env_id):
 
 def test_registered_names():
     assert {"avq", "avq-paper", "avq-plan", "tabular", "tabular-ps", "grid", "grid-ps", "tiles"} <= set(AGENTS)
+
+
+class StartAtOne(gym.ActionWrapper):
+    """CartPole with its actions numbered 1 and 2 (``Discrete(2, start=1)``)."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.action_space = gym.spaces.Discrete(2, start=1)
+
+    def action(self, action):
+        assert action in (1, 2), f"action {action} is not one of this space's"
+        return action - 1
+
+
+@pytest.mark.parametrize("agent", sorted(set(AGENTS) - CONTINUOUS_ACTIONS))
+def test_discrete_actions_not_numbered_from_zero_are_refused_with_the_wrapper_that_fixes_it(agent):
+    env = StartAtOne(gym.make("CartPole-v1"))
+    with pytest.raises(ValueError, match=r"numbered from 0, not Discrete\(2, start=1\).*TransformAction") as caught:
+        make_agent(agent, env, seed=0, **overrides(agent, "cartpole"))
+    fix = str(caught.value).split("number them from 0 with ")[1]
+    # (the fix the message gives, as written, makes a space the agent takes and actions the task takes)
+    fixed = eval(fix, {"gymnasium": gym, "env": env})  # noqa: S307
+    make_agent(agent, fixed, seed=0, **overrides(agent, "cartpole")).learn(total_episodes=2)

@@ -195,6 +195,34 @@ def test_bad_input_exits_2_and_leaves_the_study(tmp_path, monkeypatch):
     assert r.returncode == 2 and 'pip install "avq[tune]"' in r.stderr
 
 
+def test_a_refused_command_leaves_no_file_and_an_out_holds_one_study(tmp_path):
+    refused = {
+        ("--agent", "no-such-agent"): "no-such-agent",
+        ("--metric", "speed"): "unknown metric 'speed'",
+        ("--set", "alpha=2"): "alpha",
+        ("--space", str(tmp_path / "missing.yml")): "missing.yml",
+    }
+    for given, says in refused.items():
+        args = [*TINY, *given] if given[0] != "--agent" else [*TINY[:2], *given, *TINY[4:]]
+        for where in (("--out", str(tmp_path / "t" / "deeper")), ("--storage", f"sqlite:///{tmp_path / 's.db'}")):
+            r = cli_in_process("tune", *args, *where, "--n-trials", "1")
+            assert r.returncode == 2 and says in r.stderr and "Traceback" not in r.stderr, (given, r.stderr)
+            assert sorted(p.name for p in tmp_path.iterdir()) == [], (given, where)  # (nor a directory made)
+
+    out = tmp_path / "t"
+    assert cli_in_process("tune", *TINY, "--n-trials", "1", "--out", str(out)).returncode == 0
+    kept = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert set(kept) == {"study.db", "best.yaml"}
+    other = cli_in_process("tune", "--env", "CartPole-v1", *TINY[2:], "--n-trials", "1", "--out", str(out))
+    assert other.returncode == 2 and other.stderr.strip() == (
+        f"avq: error: --out {out} holds the study 'tiles-MountainCar-v0' already, and its best.yaml; give another "
+        f"--out for the study 'tiles-CartPole-v1', or continue that one with --out {out} alone"
+    )
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == kept
+    assert cli_in_process("tune", "--n-trials", "2", "--out", str(out)).returncode == 0  # (that one, continued)
+    _check_whole(_study(f"sqlite:///{out / 'study.db'}"), 2, 2)
+
+
 @pytest.mark.slow
 def test_a_killed_run_continues(tmp_path):
     url = f"sqlite:///{tmp_path / 'study.db'}"

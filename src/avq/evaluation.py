@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any, cast
 
@@ -12,6 +13,7 @@ from numba import njit
 from avq._validate import check_int
 from avq.agents.base import BaseAgent
 from avq.agents.save_util import check_env_fits, env_signature
+from avq.envs import as_env
 from avq.envs.grid_maze import GridMaze, grid_move
 from avq.envs.robot_geometry import RobotDynamics, robot_move, sonar_ranges
 from avq.envs.robot_maze import RobotMaze
@@ -90,7 +92,7 @@ def _step_limit(env: gym.Env, default: int = 100) -> int:
     return int(limit) if limit else default
 
 
-def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) -> dict[str, Any]:
+def evaluate_maze(agent: BaseAgent, env: gym.Env | str, max_steps: int | None = None) -> dict[str, Any]:
     """Run the greedy policy from every free non-goal position of a maze.
 
     The greedy policy is the agent's own decision rule with exploration off: for
@@ -119,6 +121,7 @@ def evaluate_maze(agent: BaseAgent, env: gym.Env, max_steps: int | None = None) 
             (a layout of another size, say): the rule of :func:`avq.load`, in
             :func:`avq.agents.save_util.check_env_fits`.
     """
+    env = as_env(env)
     base: Any = env.unwrapped  # (a maze: duck-typed by its layout and, for a continuous one, start_positions)
     layout = getattr(base, "layout", None)
     if layout is None or not hasattr(layout, "distances"):
@@ -193,9 +196,27 @@ def success_rule(env: gym.Env) -> str | None:
     return SUCCESS_RULES.get(getattr(spec, "id", None) or "")
 
 
+def _check_own_env(agent: BaseAgent, env: gym.Env) -> None:
+    """``env`` must fit the agent (:func:`avq.agents.save_util.check_env_fits`); the agent's own environment is
+    refused while an episode is under way and taken with a warning between episodes."""
+    if env is agent.env:
+        if agent.in_episode:
+            raise ValueError(
+                "evaluate_policy got the environment the agent is learning an episode on; give it one of its own "
+                "(gymnasium.make with the same id): its resets would cut that episode"
+            )
+        warnings.warn(
+            "evaluate_policy got the environment the agent learns on: its resets change the starts of the "
+            "episodes the agent learns next (the same seed then gives another run); give it one of its own",
+            stacklevel=3,
+        )
+    else:
+        check_env_fits(env_signature(agent.env), env, "evaluate_policy")
+
+
 def evaluate_policy(
     agent: BaseAgent,
-    env: gym.Env,
+    env: gym.Env | str,
     n_eval_episodes: int = 10,
     deterministic: bool = True,
     *,
@@ -217,10 +238,13 @@ def evaluate_policy(
 
     Args:
         agent: A trained agent (or anything with ``predict(obs, deterministic)``).
-        env: An environment like the one it was trained on (one not being trained on).
+        env: An environment like the one it was trained on, or its id (``module:id`` too:
+            :func:`avq.envs.as_env`). Not the one the agent learns on while an episode is under way (refused:
+            the evaluation would cut it); between episodes it is taken with a warning, as its resets change the
+            starts of the episodes the agent learns next.
         n_eval_episodes: Episodes to run.
         deterministic: The greedy policy (True) or the exploring one.
-        seed: Seed of the first reset (None: fresh entropy).
+        seed: Seed of the first reset, an integer >= 0 (None: fresh entropy).
         max_steps: Steps after which an episode is cut.
         progress_bar: Show a tqdm progress bar of the episodes (drawn after a second;
             its count of steps moves within a long episode).
@@ -232,6 +256,11 @@ def evaluate_policy(
     """
     n_episodes = check_int("n_eval_episodes", n_eval_episodes, 1)
     check_int("max_steps", max_steps, 1)
+    if seed is not None:
+        check_int("seed", seed, 0)
+    env = as_env(env)
+    if isinstance(agent, BaseAgent):  # (only agents know their env; any object with predict() may be evaluated)
+        _check_own_env(agent, env)
     rule = success_rule(env)
     returns, lengths, successes = [], [], []
     capped = 0

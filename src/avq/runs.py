@@ -125,7 +125,8 @@ def resume_train(run_dir: str | os.PathLike, progress: bool = True) -> dict[str,
     out = Path(run_dir)
     config = read_run_config(out)
     if (out / "model.zip").exists() and (out / "summary.json").exists():  # (read only: no need to hold it)
-        return {**json.loads((out / "summary.json").read_text(encoding="utf-8")), "already_finished": True}
+        summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+        return {**summary, "out": str(out), "already_finished": True}  # (as given now, not as it was given then)
     with hold_directory(out):
         for key in ("episodes", "timesteps"):
             if config.get(key) is not None:
@@ -237,7 +238,12 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     if Path(run_dir).is_file():
         raise ValueError(f"{run_dir} is a file; give the run directory (written by 'avq train')")
     if not path.is_file():
-        raise ValueError(f"{run_dir}: no config.yml here; is this a directory written by 'avq train'?")
+        model = Path(run_dir) / "model.zip"
+        raise ValueError(
+            f"{run_dir}: no config.yml here; give the model file in it, {model}"
+            if model.is_file()
+            else f"{run_dir}: no config.yml here; is this a directory written by 'avq train'?"
+        )
     try:
         config = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
@@ -247,11 +253,13 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     return config
 
 
-def load_run(run_dir: str | os.PathLike) -> tuple[BaseAgent, str]:
+def load_run(run_dir: str | os.PathLike, env: str | None = None) -> tuple[BaseAgent, str]:
     """The trained agent of a run directory of :func:`train` (its ``model.zip``, on the environment its
     ``config.yml`` names) or of a model file written by ``agent.save`` (on the environment the file records),
     such as a stopped run's ``checkpoint.zip``, and its name: the run's agent name, or the one the file
-    records (its class for a file that records none)."""
+    records (its class for a file that records none). ``env``, an id or ``module:id``
+    (:func:`avq.envs.as_env`), instead of the environment the run or the file names: for a file whose own
+    cannot be made here (an id registered by a module of the user's that the file does not record)."""
     from avq.agents.base import load
 
     if not Path(run_dir).exists():
@@ -259,30 +267,33 @@ def load_run(run_dir: str | os.PathLike) -> tuple[BaseAgent, str]:
             f"{run_dir}: no such model file or run directory; give a directory written by 'avq train' "
             "or a model file written by agent.save"
         )
+    given = None if env is None else make_env(env)
     if Path(run_dir).is_file():
         try:
-            model = load(run_dir)
+            model = load(run_dir, env=given)
         except ValueError as exc:
+            hint = "" if env is not None or "pass env=" not in str(exc) else " (avq evaluate and avq plot: --env ID)"
             raise ValueError(
-                f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
+                f"{exc}{hint}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
             ) from None
         used = model.defaults_used
         return model, used.name if used is not None else type(model).__name__
     config = read_run_config(run_dir)
-    env = make_env(config["env"], config.get("env_kwargs"))
+    if given is None:
+        given = make_env(config["env"], config.get("env_kwargs"))
     model_path = Path(run_dir) / "model.zip"
     if not model_path.is_file():
         checkpoint = Path(run_dir) / "checkpoint.zip"
         if checkpoint.is_file():
             raise ValueError(
-                f"{run_dir}: no model.zip here: the run stopped before its end, and its last checkpoint can be "
-                f"evaluated: avq evaluate {checkpoint}; or finish the run first: avq train --resume {run_dir}"
+                f"{run_dir}: no model.zip here: the run stopped before its end; give its last checkpoint instead, "
+                f"{checkpoint}, or finish the run first: avq train --resume {run_dir}"
             )
         raise ValueError(
             f"{run_dir}: no model.zip here: the run stopped before its first checkpoint; "
             f"run it again from the start: avq train --resume {run_dir}"
         )
-    return load(model_path, env=env), config["agent"]
+    return load(model_path, env=given), config["agent"]
 
 
 def evaluate_run(
@@ -291,6 +302,7 @@ def evaluate_run(
     seed: int | None = 0,
     max_steps: int = 100_000,
     progress: bool = False,
+    env: str | None = None,
 ) -> dict[str, Any]:
     """Load a model and evaluate its greedy policy (and, on a maze, from every start).
 
@@ -299,17 +311,17 @@ def evaluate_run(
     the file records), such as those ``avq reproduce`` writes into ``models/``, or a stopped run's
     ``checkpoint.zip``. Episodes are cut at ``max_steps`` steps (:func:`avq.evaluation.evaluate_policy`;
     ``capped`` counts them). The report names the agent (``agent``: its name in ``avq.make_agent``, or its
-    class for a file that does not record one) and its ``class``.
+    class for a file that does not record one) and its ``class``. ``env``: as :func:`load_run`'s.
     """
     from avq.evaluation import evaluate_policy
 
-    model, name = load_run(run_dir)
-    env = model.env
-    result = evaluate_policy(
-        model, env, n_eval_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress
-    )
-    spec = env.spec
+    model, name = load_run(run_dir, env)
+    spec = model.env.spec
     assert spec is not None  # (made from its id: by make_env, or by load from the id the file records)
+    made = gym.make(spec)  # (an environment of the evaluation's own, like the agent's)
+    result = evaluate_policy(
+        model, made, n_eval_episodes=episodes, seed=seed, max_steps=max_steps, progress_bar=progress
+    )
     report: dict[str, Any] = {
         "run": str(run_dir),
         "env": spec.id,
@@ -322,7 +334,7 @@ def evaluate_run(
             for k in ("episodes", "mean_return", "std_return", "mean_steps", "success_rate", "capped", "max_steps")
         },
     }
-    if hasattr(env.unwrapped, "layout"):
+    if hasattr(made.unwrapped, "layout"):
         maze = evaluate_maze(model, gym.make(spec))  # (a second env like the first)
         report["maze_success_rate"] = maze["success_rate"]
         report["maze_path_ratio"] = maze["path_ratio"]

@@ -240,7 +240,9 @@ def check_box_discrete(agent: str, obs_space: spaces.Space, act_space: spaces.Sp
 
 
 def check_discrete_actions(agent: str, act_space: spaces.Space) -> None:
-    """Require ``Discrete`` actions; a ``Box`` action space gets a message pointing to the agents for it."""
+    """Require ``Discrete`` actions numbered from 0 (the agents act with ``0 .. n - 1``); a ``Box`` action space
+    gets a message pointing to the agents for it, a ``start`` other than 0 one that says how to number them from
+    0."""
     if not isinstance(act_space, spaces.Discrete):
         raise ValueError(
             f"{agent} needs a Discrete action space, not {act_space}"
@@ -249,6 +251,12 @@ def check_discrete_actions(agent: str, act_space: spaces.Space) -> None:
                 if isinstance(act_space, spaces.Box)
                 else ""
             )
+        )
+    start, n = int(act_space.start), int(act_space.n)
+    if start != 0:
+        raise ValueError(
+            f"{agent} needs Discrete actions numbered from 0, not {act_space} (start={start}); number them from 0 "
+            f"with gymnasium.wrappers.TransformAction(env, lambda a: a + {start}, gymnasium.spaces.Discrete({n}))"
         )
 
 

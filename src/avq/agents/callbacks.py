@@ -117,6 +117,10 @@ class CheckpointCallback(BaseCallback):
         self.log.sync(agent.history_)  # (the episodes after the last checkpoint too; a resume drops them again)
 
 
+#: The files an :class:`EvalCallback` writes into its directory.
+EVAL_FILES = ("evaluations.csv", "best.zip")
+
+
 class EvalCallback(BaseCallback):
     """Every ``every`` episodes (counted from the agent's first), the greedy policy run for ``n_eval_episodes`` on
     ``eval_env`` (:func:`avq.evaluation.evaluate_policy`, its first reset seeded with ``seed``, so every evaluation
@@ -131,7 +135,8 @@ class EvalCallback(BaseCallback):
             against the agent's when ``learn`` starts).
         every: Episodes between evaluations (>= 1).
         n_eval_episodes: Episodes of each evaluation (>= 1).
-        directory: Where the files go (made if missing; a file there is refused); None: no files.
+        directory: Where the files go (made if missing; a file there is refused, and so is a directory that holds
+            ``evaluations.csv`` or ``best.zip`` already: an earlier run's); None: no files.
         seed: The seed of each evaluation's first reset.
 
     Attributes:
@@ -158,6 +163,12 @@ class EvalCallback(BaseCallback):
         self.directory = None if directory is None else Path(directory)
         if self.directory is not None and self.directory.exists() and not self.directory.is_dir():
             raise ValueError(f"eval directory {self.directory} is a file; give a directory")
+        held = [name for name in EVAL_FILES if self.directory is not None and (self.directory / name).exists()]
+        if held:
+            raise ValueError(
+                f"eval directory {self.directory} holds {' and '.join(held)} already (an earlier run's, which this "
+                "one would replace); give another directory, or move them away to start again"
+            )
         self.evaluations_: list[Record] = []
         self.best_mean_return_ = float("-inf")
 

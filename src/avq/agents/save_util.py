@@ -102,7 +102,7 @@ def env_signature(env: gym.Env) -> dict[str, Any]:
     return {
         "observation_space": _space_to_json(env.observation_space),
         "action_space": _space_to_json(env.action_space),
-        "env_id": recorded_env_id(env.spec.id) if env.spec is not None else None,
+        "env_id": recorded_env_id(env.spec.id, env.spec.entry_point) if env.spec is not None else None,
         "env_make": _env_make_args(env),
     }
 
@@ -185,6 +185,16 @@ def _plain_json(value: Any) -> Any:
 
 
 def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    if path.is_dir():
+        inside = [name for name in ("model.zip", "checkpoint.zip", "best.zip") if (path / name).is_file()]
+        raise ValueError(
+            f"{path} is a directory, not a model file; "
+            + (
+                f"give the model file in it: {path / inside[0]}"
+                if inside
+                else "give a model file written by agent.save"
+            )
+        )
     try:
         with zipfile.ZipFile(path) as zf:
             meta = json.loads(zf.read("meta.json").decode("utf-8"))

@@ -48,6 +48,12 @@ def _run(argv: Sequence[str] | None) -> int:
     except KeyboardInterrupt:
         print("avq: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        gym_error = sys.modules.get("gymnasium.error")  # (Gymnasium's errors for its users: a missing extra, say)
+        if gym_error is None or not isinstance(exc, gym_error.Error) or os.environ.get("AVQ_DEBUG"):
+            raise
+        print(f"avq: error: the environment raised {type(exc).__name__}: {str(exc).splitlines()[0]}", file=sys.stderr)
+        return 2
 
 
 @contextmanager

@@ -297,7 +297,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from avq.runs import evaluate_run
 
     report = evaluate_run(
-        args.run_dir, episodes=args.episodes, seed=args.seed, max_steps=args.max_steps, progress=_progress(args)
+        args.run_dir,
+        episodes=args.episodes,
+        seed=args.seed,
+        max_steps=args.max_steps,
+        progress=_progress(args),
+        env=args.env,
     )
     if args.json:
         print(json.dumps(report, indent=2))
@@ -392,6 +397,6 @@ def cmd_plot(args: argparse.Namespace) -> int:
     """``avq plot``: the cells and greedy actions of a run or model file over two dimensions."""
     from avq.plotting import plot_model
 
-    kwargs = {k: getattr(args, k) for k in ("dims", "at", "project", "bounds", "resolution", "out")}
+    kwargs = {k: getattr(args, k) for k in ("dims", "at", "project", "bounds", "resolution", "out", "env")}
     print(f"wrote {plot_model(args.model, **kwargs)}")
     return 0

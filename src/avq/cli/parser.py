@@ -54,6 +54,10 @@ def _nonnegative_int(name: str):
 
 
 _NO_PROGRESS_HELP = "hide the progress bar (hidden anyway when stderr is not a terminal)"
+_LOAD_ENV_HELP = (
+    "the environment to load the model with instead of the one it records: an id, or MODULE:ID for an id "
+    "that a module of yours registers (as in 'nav3d:user/Nav3D-v0')"
+)
 
 
 def build_parser() -> _Parser:
@@ -200,6 +204,7 @@ def build_parser() -> _Parser:
         metavar="N",
         help="cut an episode the environment has not ended after N steps (default 100000)",
     )
+    ev.add_argument("--env", metavar="ID", help=_LOAD_ENV_HELP)
     ev.add_argument("--json", action="store_true", help="print JSON")
     ev.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS_HELP)
     ev.set_defaults(func=cmd_evaluate)
@@ -219,5 +224,6 @@ def build_parser() -> _Parser:
     pl.add_argument("--bounds", metavar="D=LOW:HIGH,...", help="the range of a dimension, e.g. 1=-3:3")
     pl.add_argument("--resolution", type=positive_int("--resolution"), default=400, help="pixels per axis (400)")
     pl.add_argument("--out", help="file to write (default DIR/policy_D0-D1.png, or beside MODEL.zip)")
+    pl.add_argument("--env", metavar="ID", help=_LOAD_ENV_HELP)
     pl.set_defaults(func=cmd_plot)
     return parser

@@ -73,11 +73,26 @@ def split_env_id(env_id: str) -> tuple[str | None, str]:
     return (module, name) if sep else (None, env_id)
 
 
-def recorded_env_id(env_id: str) -> str:
-    """``env_id`` as a file should record it: with the module that registered it, if that was given as
-    ``module:id`` in this process (``"mymodule:user/Nav3D-v0"``); else as it is."""
+#: Packages whose ids are registered once they are imported with avq: a file records their ids without a module.
+_ALWAYS_REGISTERED = ("gymnasium", "avq")
+
+
+def recorded_env_id(env_id: str, entry_point: Any = None) -> str:
+    """``env_id`` as a file should record it, so that loading it in another process makes the environment again:
+    with the module that registered it, if that was given as ``module:id`` in this process
+    (``"mymodule:user/Nav3D-v0"``); else with the module of its ``entry_point`` (its spec's: a ``"module:Class"``
+    string, or a class or function) where that is neither Gymnasium's nor avq's nor a script's ``__main__`` (a
+    module that registers its own class, as Gymnasium's do); else as it is."""
+    if split_env_id(env_id)[0] is not None:
+        return env_id
     module = _REGISTERED_BY.get(env_id)
-    return f"{module}:{env_id}" if module and split_env_id(env_id)[0] is None else env_id
+    if module is None:
+        where = (
+            entry_point.partition(":")[0] if isinstance(entry_point, str) else getattr(entry_point, "__module__", "")
+        )
+        top = (where or "").split(".")[0]
+        module = where if where and where != "__main__" and top not in _ALWAYS_REGISTERED else None
+    return f"{module}:{env_id}" if module else env_id
 
 
 @contextmanager
@@ -113,9 +128,12 @@ def _import_registering_module(module: str, env_id: str) -> None:
             ) from None
         except Exception as exc:  # noqa: BLE001  (any error of the user's module: say where, without a traceback)
             frames = [f for f in traceback.extract_tb(exc.__traceback__) if "importlib" not in f.filename]
-            where = f" ({frames[-1].filename}, line {frames[-1].lineno})" if frames else ""
+            if isinstance(exc, SyntaxError):  # (where the module's text is wrong, not where it was imported)
+                what, where = exc.msg, f" ({exc.filename}, line {exc.lineno})"
+            else:
+                what, where = str(exc), f" ({frames[-1].filename}, line {frames[-1].lineno})" if frames else ""
             raise ValueError(
-                f"environment {given!r}: importing module {module!r} failed with {type(exc).__name__}: {exc}{where}; "
+                f"environment {given!r}: importing module {module!r} failed with {type(exc).__name__}: {what}{where}; "
                 "fix the module (python -c 'import " + module + "' shows the traceback)"
             ) from None
 

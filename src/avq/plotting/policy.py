@@ -179,10 +179,12 @@ def plot_model(
     project: bool = False,
     resolution: int = 400,
     bounds: Mapping[int, tuple[float, float]] | str | None = None,
+    env: str | None = None,
 ) -> Path:
     """:func:`plot_policy` of a saved agent: a run directory of ``avq train`` (its ``model.zip``) or a model
     file of ``agent.save``. ``out`` defaults to ``policy_D0-D1.png`` (``policy_D0-D1_projected.png``) in the
-    run directory, or beside the model file with the file's name in front."""
+    run directory, or beside the model file with the file's name in front. ``env``: the environment to load
+    it with instead of its own, as :func:`avq.runs.load_run`'s."""
     from avq.plotting.policy_data import parse_dims
     from avq.runs import load_run
 
@@ -191,7 +193,7 @@ def plot_model(
             f"no such model file or run directory: {model}; give a directory written by 'avq train' or a "
             "model file written by agent.save"
         )
-    agent, name = load_run(model)
+    agent, name = load_run(model, env)
     d0, d1 = parse_dims(dims) if isinstance(dims, str) else dims
     if out is None:
         stem = f"policy_{d0}-{d1}{'_projected' if project else ''}.png"

@@ -197,6 +197,14 @@ def _ranges(
     for d in range(n):
         if d in bounds:
             out[d] = bounds[d]
+            if not np.all(np.isfinite(out[d])) or not out[d, 1] > out[d, 0]:
+                lo, hi = sorted(out[d])
+                fix = f"{lo:g}:{hi:g}" if np.isfinite([lo, hi]).all() and hi > lo else "-3:3"
+                raise ValueError(
+                    f"bounds of dimension {d} ({names[d]}): {out[d, 0]:g} to {out[d, 1]:g} is not a range to draw; "
+                    f"give finite LOW below HIGH, e.g. bounds={{{d}: ({fix.replace(':', ', ')})}} "
+                    f"(avq plot --bounds {d}={fix})"
+                )
         elif given[d] is not None:
             out[d] = given[d]
         elif np.isfinite(low[d]) and np.isfinite(high[d]) and high[d] > low[d]:

@@ -23,7 +23,18 @@ import time
 from pathlib import Path
 from typing import Any
 
-from avq.tune.storage import IDENTITY, OBJECTIVE, check_same, open_storage, recorded, shown, storage_url, study_names
+from avq.tune.storage import (
+    IDENTITY,
+    OBJECTIVE,
+    check_same,
+    new_paths,
+    open_storage,
+    recorded,
+    remove_new,
+    shown,
+    storage_url,
+    study_names,
+)
 from avq.tune.worker import METRICS, counts
 
 __all__ = ["tune", "report", "best_entry", "study_config", "require_optuna", "METRICS"]
@@ -90,9 +101,7 @@ def tune(
     continue one), else default to 3 seeds, 300 episodes, 5 evaluations and ``final_return``. Returns the
     study's summary (:func:`summary`). Raises ValueError on bad input, before anything is written.
     """
-    from avq.sweep.backends import BACKENDS, RUNNERS, check_backend
-    from avq.sweep.config import spawn_seeds
-    from avq.tune import space as spaces
+    from avq.sweep.backends import BACKENDS, RUNNERS
     from avq.tune.worker import work
 
     require_optuna()
@@ -109,39 +118,16 @@ def tune(
             raise ValueError("--env is required (or --storage/--out of a study to continue)")
         out = Path("tune") / default_name(agent or "avq", env)
     url = storage_url(storage, out or ".")
-    store = open_storage(url)
-    names = study_names(store)
-    if study_name is None and env is None and len(names) == 1:
-        study_name = names[0]
-    before = recorded(store, study_name) if study_name else None
-    before = before or {}
-    env = env or before.get("env")
-    agent = agent or before.get("agent") or "avq"
-    if env is None:
-        raise ValueError(f"--env is required: {shown(url)} holds no study to continue")
-    study_name = study_name or default_name(agent, env)
-    before = recorded(store, study_name) or {}
-    given: dict[str, Any] = {
-        "agent": agent,
-        "env": env,
-        "env_kwargs": env_kwargs if env_kwargs is not None else before.get("env_kwargs", {}),
-        "metric": metric or before.get("metric", "final_return"),
-        "seeds": list(spawn_seeds(seed, seeds)) if seeds is not None else before.get("seeds"),
-        "episodes": episodes if episodes or timesteps else before.get("episodes", None if before else 300),
-        "timesteps": timesteps if episodes or timesteps else before.get("timesteps"),
-        "evaluations": evaluations or before.get("evaluations", 5),
-        "eval_episodes": eval_episodes if eval_episodes is not None else before.get("eval_episodes", 10),
-        "fixed": fixed if fixed is not None else before.get("fixed", {}),
-    }
-    given["seeds"] = given["seeds"] or list(spawn_seeds(seed, 3))
-    if given["metric"] not in METRICS:
-        raise ValueError(f"unknown metric {given['metric']!r}; choose one of {', '.join(METRICS)}")
-    check_same(before, given, study_name, url)
-    searched = spaces.read_space(space) if space is not None else spaces.agent_space(agent)
-    where = f"search space {space}" if space is not None else f"avq/agents/defaults/{agent}.yaml 'search'"
-    _check_task(given, searched, where)
-    check_backend(backend, address)
-    study = _create(store, study_name, given, url)
+    made = new_paths(url)
+    try:
+        asked = dict(env=env, agent=agent, study_name=study_name, seed=seed, seeds=seeds, episodes=episodes,
+                     timesteps=timesteps, evaluations=evaluations, metric=metric, eval_episodes=eval_episodes,
+                     env_kwargs=env_kwargs, fixed=fixed, space=space, backend=backend, address=address)  # fmt: skip
+        study, given, searched = _open(url, out if storage is None else None, asked)
+    except ValueError:  # (a refused command leaves nothing behind)
+        remove_new(made)
+        raise
+    agent, env, study_name = given["agent"], given["env"], study.study_name
     c0 = counts(study)
     log(
         f"study {study_name!r} in {shown(url)}: {c0['done']} of {n_trials} trials done; "
@@ -305,3 +291,58 @@ def best_entry(storage: str, study_name: str | None = None) -> str:
     params = {**ENTRIES[agent][key].params, **(attrs.get("fixed") or {}), **t.params}
     entry["params"] = {k: (round(v, 6) if isinstance(v, float) and math.isfinite(v) else v) for k, v in params.items()}
     return yaml.safe_dump({split_env_id(env)[1]: entry}, sort_keys=False, width=110)  # (keyed as the entries are)
+
+
+def _open(url: str, own: str | os.PathLike | None, asked: dict[str, Any]) -> tuple[Any, dict[str, Any], dict]:
+    """:func:`tune`'s study at ``url``, made or continued with the settings it records (``asked``: :func:`tune`'s
+    arguments of the study), after every check of them: a ValueError before the study is made. Returns the
+    study, its settings and its search space. ``own``: the ``--out`` whose own ``study.db`` is the storage,
+    which holds one study (the ``best.yaml`` beside it is that study's)."""
+    from avq.sweep.backends import check_backend
+    from avq.sweep.config import spawn_seeds
+    from avq.tune import space as spaces
+
+    store = open_storage(url)
+    names = study_names(store)
+    env, study_name = asked["env"], asked["study_name"]
+    if study_name is None and env is None and len(names) > 1:
+        raise ValueError(f"{shown(url)} holds the studies {', '.join(names)}; name one with --study-name")
+    if study_name is None and env is None and len(names) == 1:
+        study_name = names[0]
+    before = (recorded(store, study_name) if study_name else None) or {}
+    env = env or before.get("env")
+    agent = asked["agent"] or before.get("agent") or "avq"
+    if env is None:
+        raise ValueError(f"--env is required: {shown(url)} holds no study to continue")
+    study_name = study_name or default_name(agent, env)
+    if own is not None and names and study_name not in names:
+        raise ValueError(
+            f"--out {own} holds the study {names[0]!r} already, and its best.yaml; give another --out for the "
+            f"study {study_name!r}, or continue that one with --out {own} alone"
+        )
+    before = recorded(store, study_name) or {}
+    episodes, timesteps, seed = asked["episodes"], asked["timesteps"], asked["seed"]
+    given: dict[str, Any] = {
+        "agent": agent,
+        "env": env,
+        "env_kwargs": asked["env_kwargs"] if asked["env_kwargs"] is not None else before.get("env_kwargs", {}),
+        "metric": asked["metric"] or before.get("metric", "final_return"),
+        "seeds": list(spawn_seeds(seed, asked["seeds"])) if asked["seeds"] is not None else before.get("seeds"),
+        "episodes": episodes if episodes or timesteps else before.get("episodes", None if before else 300),
+        "timesteps": timesteps if episodes or timesteps else before.get("timesteps"),
+        "evaluations": asked["evaluations"] or before.get("evaluations", 5),
+        "eval_episodes": asked["eval_episodes"]
+        if asked["eval_episodes"] is not None
+        else before.get("eval_episodes", 10),
+        "fixed": asked["fixed"] if asked["fixed"] is not None else before.get("fixed", {}),
+    }
+    given["seeds"] = given["seeds"] or list(spawn_seeds(seed, 3))
+    if given["metric"] not in METRICS:
+        raise ValueError(f"unknown metric {given['metric']!r}; choose one of {', '.join(METRICS)}")
+    check_same(before, given, study_name, url)
+    space = asked["space"]
+    searched = spaces.read_space(space) if space is not None else spaces.agent_space(agent)
+    where = f"search space {space}" if space is not None else f"avq/agents/defaults/{agent}.yaml 'search'"
+    _check_task(given, searched, where)
+    check_backend(asked["backend"], asked["address"])
+    return _create(store, study_name, given, url), given, searched

@@ -31,7 +31,15 @@ def add_tune_command(command: Any) -> None:
     from avq.cli.parser import ENV_HELP, positive_int
 
     tu = command("tune", help="tune an agent's parameters for a task with Optuna", description=_DESCRIPTION)
-    tu.add_argument("action", nargs="?", choices=["run", "report", "export"], default="run", help="default run")
+    tu.add_argument(
+        "action",
+        nargs="?",
+        choices=["run", "report", "export"],
+        default="run",
+        help="run (the default): tune, with every option below; report: rank a study's trials (--out or --storage, "
+        "--study-name, --top); export: print its best trial as an entry of the agents' defaults (--out or --storage, "
+        "--study-name)",
+    )
     tu.add_argument("--env", help=ENV_HELP + " (default: the study's)")
     tu.add_argument("--agent", help="agent name (default: the study's, else avq)")
     tu.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make")

@@ -20,7 +20,9 @@ import socket
 from pathlib import Path
 from typing import Any
 
-__all__ = ["IDENTITY", "OBJECTIVE", "storage_url", "open_storage", "study_names", "recorded", "retry"]
+__all__ = [
+    "IDENTITY", "OBJECTIVE", "storage_url", "open_storage", "study_names", "recorded", "retry", "new_paths", "remove_new"
+]  # fmt: skip
 
 #: The study's task: continuing it with other values is refused.
 IDENTITY = ("agent", "env", "env_kwargs")
@@ -69,6 +71,30 @@ def storage_url(storage: str | None, out: str | os.PathLike) -> str:
             f"{str(exc).splitlines()[0]}); give one of {_FORMS}"
         ) from None
     return f"{scheme}://{rest}"
+
+
+def new_paths(url: str) -> list[Path]:
+    """What opening the file storage at ``url`` creates that does not exist yet: its file, then the directories
+    above it that are missing, the nearest first (nothing for a database server); :func:`remove_new` removes
+    them again."""
+    for scheme in ("sqlite:///", "journal://"):
+        if url.startswith(scheme):
+            path = Path(url[len(scheme) :])
+            return [p for p in (path, *path.parents) if not p.exists()]
+    return []
+
+
+def remove_new(paths: list[Path]) -> None:
+    """Remove what :func:`new_paths` listed and a refused command made: the file, then each directory left
+    empty (one that holds anything else is kept, with those above it)."""
+    for path in paths:
+        if path.is_file():
+            path.unlink()
+        elif path.is_dir():
+            try:
+                path.rmdir()
+            except OSError:
+                return
 
 
 def _postgres_driver() -> str:
