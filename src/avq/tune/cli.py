@@ -41,7 +41,9 @@ def add_tune_command(command: Any) -> None:
         "--study-name)",
     )
     tu.add_argument("--env", help=ENV_HELP + " (default: the study's)")
-    tu.add_argument("--agent", help="agent name (default: the study's, else avq)")
+    from avq.agents.registry import AGENTS
+
+    tu.add_argument("--agent", help=f"agent name (default: the study's, else avq): {', '.join(AGENTS)}")
     tu.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make")
     tu.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter fixed in every trial")
     tu.add_argument("--space", metavar="FILE.yaml", help="search space (default: the agent's 'search' in its defaults)")
