@@ -114,5 +114,8 @@ def test_evaluating_on_the_env_being_learned_on_warns_between_episodes_and_is_re
         evaluate_policy(agent, env, 1)
     agent.learn(total_timesteps=50)  # (stops inside an episode: MountainCar's last 200 steps)
     assert agent.in_episode
-    with pytest.raises(ValueError, match="the agent is learning an episode on; give it one of its own"):
-        evaluate_policy(agent, env, 1)
+    for same in (env, env.unwrapped):  # (wrappers aside, one environment)
+        with pytest.raises(ValueError, match="the agent is learning an episode on; give it one of its own"):
+            evaluate_policy(agent, same, 1)
+    with pytest.raises(ValueError, match="one of its own"):
+        agent.learn(total_episodes=1, callback=EvalCallback(env.unwrapped, every=1))

@@ -6,6 +6,8 @@ The environment is the how-to's (docs/how-to/own-task.md), so that the page's co
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 import json
 import re
 import sys
@@ -16,6 +18,7 @@ import pytest
 
 import avq
 from avq._io import file_name_part
+from avq.envs import recorded_env_id
 from avq.runs import default_run_dir
 
 from conftest import cli_in_process, cli_subprocess
@@ -160,22 +163,48 @@ def test_a_model_saved_as_the_how_to_saves_it_is_evaluated_and_plotted_from_the_
     assert avq.load(path).env.spec.id == "user/Nav3D-v0"
 
 
-def test_a_model_whose_env_cannot_be_made_again_is_evaluated_with_env(workdir, monkeypatch):
-    monkeypatch.syspath_prepend(str(workdir))
-    import nav3d
-
-    gym.register("user/Unrecorded-v0", entry_point=lambda: nav3d.Nav3D(), max_episode_steps=50)
+def test_a_model_whose_env_cannot_be_made_again_is_evaluated_with_env(workdir, tmp_path_factory):
+    # A module run from its file (as runpy or importlib's spec_from_file_location do): no import finds it by name,
+    # so the file records the id alone, and another process is given the environment with --env.
+    elsewhere = tmp_path_factory.mktemp("elsewhere") / "byfile.py"
+    elsewhere.write_text(NAV3D.replace("user/Nav3D-v0", "user/Unrecorded-v0"), encoding="utf-8")
+    spec = importlib.util.spec_from_file_location("byfile_loaded", elsewhere)
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
     try:
         agent = avq.make_agent("avq", gym.make("user/Unrecorded-v0"), seed=0).learn(total_episodes=3)
+        agent.save(workdir / "m.zip")
+        assert avq.load(workdir / "m.zip").env.spec.id == "user/Unrecorded-v0"  # (in this process: registered)
     finally:
         gym.registry.pop("user/Unrecorded-v0", None)
-    agent.save(workdir / "m.zip")
-    # (a lambda's module is this test module, which a new process imports from nowhere: the file names it anyway)
     no_env = cli_subprocess("evaluate", "m.zip", "--episodes", "2", cwd=workdir)
     assert no_env.returncode == 2 and "Traceback" not in no_env.stderr
+    assert "unknown environment 'user/Unrecorded-v0'" in no_env.stderr
     assert "(avq evaluate and avq plot: --env ID)" in no_env.stderr
     given = cli_subprocess(
         "evaluate", "m.zip", "--episodes", "2", "--env", "nav3d:user/Nav3D-v0", "--json", cwd=workdir
     )
     assert given.returncode == 0, given.stderr
     assert json.loads(given.stdout)["env"] == "user/Nav3D-v0"
+
+
+def test_a_file_records_the_module_an_import_finds_of_its_entry_point(workdir, monkeypatch):
+    monkeypatch.syspath_prepend(str(workdir))
+    import nav3d
+
+    class InMain(nav3d.Nav3D):
+        pass
+
+    InMain.__module__ = "__main__"
+    cases = {
+        "gymnasium.envs.classic_control.cartpole:CartPoleEnv": "user/X-v0",  # (Gymnasium's own: registered anyway)
+        "avq.envs.slab_maze:SlabMaze": "user/X-v0",
+        "nav3d:Nav3D": "nav3d:user/X-v0",
+        nav3d.Nav3D: "nav3d:user/X-v0",
+        functools.partial(nav3d.Nav3D): "nav3d:user/X-v0",  # (the partial's function's module, not functools)
+        InMain: "user/X-v0",  # (a script's: another process cannot import it)
+        "no_such_module_of_avq:Thing": "user/X-v0",
+        "<run_path>:Thing": "user/X-v0",
+    }
+    for entry_point, recorded in cases.items():
+        assert recorded_env_id("user/X-v0", entry_point) == recorded, entry_point
+    assert recorded_env_id("other:user/X-v0", nav3d.Nav3D) == "other:user/X-v0"  # (the form given, kept)

@@ -240,4 +240,48 @@ def test_a_directory_given_for_a_model_file_names_the_model_file_in_it(tmp_path)
     with pytest.raises(ValueError, match="is a directory, not a model file; give a model file written by agent.save"):
         avq.load(tmp_path)
     line = one_error_line(cli_in_process("evaluate", str(trial)))
-    assert line == f"avq: error: {trial}: no config.yml here; give the model file in it, {trial / 'model.zip'}"
+    assert line == (
+        f"avq: error: {trial}: no config.yml here (not a directory of 'avq train'); give the model file in it, "
+        f"{trial / 'model.zip'}"
+    )
+    resume = one_error_line(cli_in_process("train", "--resume", str(trial)))  # (no model file to resume from)
+    assert resume == f"avq: error: {trial}: no config.yml here; is this a directory written by 'avq train'?"
+
+
+def test_a_gymnasium_error_without_a_message_is_still_one_line(tmp_path):
+    (tmp_path / "silent_extra.py").write_text(
+        "import gymnasium as gym\n"
+        "from gymnasium.envs.classic_control import CartPoleEnv\n\n\n"
+        "class Silent(CartPoleEnv):\n"
+        "    def reset(self, *, seed=None, options=None):\n"
+        "        raise gym.error.DependencyNotInstalled()\n\n\n"
+        "gym.register('user/Silent-v0', entry_point=Silent, max_episode_steps=50)\n",
+        encoding="utf-8",
+    )
+    try:
+        result = cli_in_process("train", "--env", "silent_extra:user/Silent-v0", "--episodes", "2", cwd=tmp_path)
+    finally:
+        gym.registry.pop("user/Silent-v0", None)
+        sys.modules.pop("silent_extra", None)
+    assert one_error_line(result) == "avq: error: the environment raised DependencyNotInstalled: (no message)"
+
+
+def test_resuming_a_finished_run_reports_the_directory_as_given(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    train("avq/GridMaze-v0", "tabular", episodes=3, out="runs/g", progress=False)
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    from avq.runs import resume_train
+
+    summary = resume_train("../runs/g", progress=False)
+    assert summary["already_finished"] and summary["out"] == "../runs/g"
+
+
+def test_env_given_for_the_same_id_keeps_the_make_arguments_the_run_and_the_file_record(tmp_path):
+    from avq.runs import evaluate_run
+
+    run = tmp_path / "run"
+    train("MountainCar-v0", "tiles", episodes=2, env_kwargs={"max_episode_steps": 20}, out=run, progress=False)
+    for target in (run, run / "model.zip"):
+        for env in (None, "MountainCar-v0"):
+            assert evaluate_run(target, episodes=2, env=env)["mean_steps"] == 20.0, (target, env)

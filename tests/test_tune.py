@@ -173,8 +173,8 @@ def test_bad_input_exits_2_and_leaves_the_study(tmp_path, monkeypatch):
     cases = {
         ("--storage", "foo://bar/x"): ["foo://bar/x", "sqlite:///"],
         ("--storage", "study.sqlite"): ["study.sqlite", "not a storage URL"],
-        ("--agent", "tabular-ps", "--study-name", "tiles-MountainCar-v0"): ["agent 'tiles'", "--study-name"],
-        ("--env", "Acrobot-v1", "--study-name", "tiles-MountainCar-v0"): ["env 'MountainCar-v0'", "--study-name"],
+        ("--agent", "tabular-ps", "--study-name", "tiles-MountainCar-v0"): ["agent 'tiles'", "another --out"],
+        ("--env", "Acrobot-v1", "--study-name", "tiles-MountainCar-v0"): ["env 'MountainCar-v0'", "another --out"],
         ("--episodes", "7"): ["episodes 4", "another objective"],
         ("--space", str(tmp_path / "space.yml")): ["'alhpa'", "not a parameter of agent 'tiles'"],
         ("--n-trials", "0"): ["--n-trials", "not 0"],
@@ -215,12 +215,42 @@ def test_a_refused_command_leaves_no_file_and_an_out_holds_one_study(tmp_path):
     assert set(kept) == {"study.db", "best.yaml"}
     other = cli_in_process("tune", "--env", "CartPole-v1", *TINY[2:], "--n-trials", "1", "--out", str(out))
     assert other.returncode == 2 and other.stderr.strip() == (
-        f"avq: error: --out {out} holds the study 'tiles-MountainCar-v0' already, and its best.yaml; give another "
+        f"avq: error: {out} holds the study 'tiles-MountainCar-v0' already, and its best.yaml; give another "
         f"--out for the study 'tiles-CartPole-v1', or continue that one with --out {out} alone"
     )
+    objective = cli_in_process("tune", *TINY, "--metric", "eval_return", "--n-trials", "1", "--out", str(out))
+    assert objective.returncode == 2 and "(another objective); give another --out for this one" in objective.stderr
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == kept
     assert cli_in_process("tune", "--n-trials", "2", "--out", str(out)).returncode == 0  # (that one, continued)
     _check_whole(_study(f"sqlite:///{out / 'study.db'}"), 2, 2)
+
+
+def test_a_study_another_worker_made_meanwhile_is_kept_when_this_command_is_refused(tmp_path, monkeypatch):
+    import avq.tune as tune_module
+
+    url = f"sqlite:///{tmp_path / 'new' / 's.db'}"
+
+    def refused_after_another_made_it(given, searched, where):  # (the other worker's study, made during the checks)
+        from avq.tune.storage import open_storage
+
+        optuna.create_study(study_name="theirs", storage=open_storage(url))
+        raise ValueError("refused")
+
+    monkeypatch.setattr(tune_module, "_check_task", refused_after_another_made_it)
+    with pytest.raises(ValueError, match="refused"):
+        tune_module.tune("MountainCar-v0", "tiles", storage=url, episodes=4, seeds=2, n_trials=1, log=lambda _: None)
+    assert _study(url, "theirs").study_name == "theirs"
+
+
+def test_an_out_of_several_studies_asks_which(tmp_path):
+    url = f"sqlite:///{tmp_path / 's.db'}"
+    for env in ("MountainCar-v0", "Acrobot-v1"):
+        args = ["--env", env, *TINY[2:], "--n-trials", "1", "--storage", url]
+        assert cli_in_process("tune", *args).returncode == 0
+    again = cli_in_process("tune", "--n-trials", "2", "--storage", url)
+    assert again.returncode == 2 and again.stderr.strip() == (
+        f"avq: error: {url} holds the studies tiles-MountainCar-v0, tiles-Acrobot-v1; name one with --study-name"
+    )
 
 
 @pytest.mark.slow

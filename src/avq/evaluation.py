@@ -13,7 +13,7 @@ from numba import njit
 from avq._validate import check_int
 from avq.agents.base import BaseAgent
 from avq.agents.save_util import check_env_fits, env_signature
-from avq.envs import as_env
+from avq.envs import as_env, same_env
 from avq.envs.grid_maze import GridMaze, grid_move
 from avq.envs.robot_geometry import RobotDynamics, robot_move, sonar_ranges
 from avq.envs.robot_maze import RobotMaze
@@ -199,7 +199,7 @@ def success_rule(env: gym.Env) -> str | None:
 def _check_own_env(agent: BaseAgent, env: gym.Env) -> None:
     """``env`` must fit the agent (:func:`avq.agents.save_util.check_env_fits`); the agent's own environment is
     refused while an episode is under way and taken with a warning between episodes."""
-    if env is agent.env:
+    if same_env(env, agent.env):
         if agent.in_episode:
             raise ValueError(
                 "evaluate_policy got the environment the agent is learning an episode on; give it one of its own "
@@ -257,7 +257,7 @@ def evaluate_policy(
     n_episodes = check_int("n_eval_episodes", n_eval_episodes, 1)
     check_int("max_steps", max_steps, 1)
     if seed is not None:
-        check_int("seed", seed, 0)
+        seed = check_int("seed", seed, 0)
     env = as_env(env)
     if isinstance(agent, BaseAgent):  # (only agents know their env; any object with predict() may be evaluated)
         _check_own_env(agent, env)

@@ -238,12 +238,7 @@ def read_run_config(run_dir: str | os.PathLike) -> dict[str, Any]:
     if Path(run_dir).is_file():
         raise ValueError(f"{run_dir} is a file; give the run directory (written by 'avq train')")
     if not path.is_file():
-        model = Path(run_dir) / "model.zip"
-        raise ValueError(
-            f"{run_dir}: no config.yml here; give the model file in it, {model}"
-            if model.is_file()
-            else f"{run_dir}: no config.yml here; is this a directory written by 'avq train'?"
-        )
+        raise ValueError(f"{run_dir}: no config.yml here; is this a directory written by 'avq train'?")
     try:
         config = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
@@ -259,28 +254,37 @@ def load_run(run_dir: str | os.PathLike, env: str | None = None) -> tuple[BaseAg
     such as a stopped run's ``checkpoint.zip``, and its name: the run's agent name, or the one the file
     records (its class for a file that records none). ``env``, an id or ``module:id``
     (:func:`avq.envs.as_env`), instead of the environment the run or the file names: for a file whose own
-    cannot be made here (an id registered by a module of the user's that the file does not record)."""
+    cannot be made here (an id registered by a module of the user's that the file does not record); made with
+    the ``gymnasium.make`` arguments the run or the file records where it names the same id."""
     from avq.agents.base import load
+    from avq.agents.save_util import model_file_in, recorded_env
 
     if not Path(run_dir).exists():
         raise ValueError(
             f"{run_dir}: no such model file or run directory; give a directory written by 'avq train' "
             "or a model file written by agent.save"
         )
-    given = None if env is None else make_env(env)
     if Path(run_dir).is_file():
         try:
-            model = load(run_dir, env=given)
+            env_id, env_make = recorded_env(run_dir)
+        except ValueError as exc:
+            raise ValueError(
+                f"{exc}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
+            ) from None
+        try:
+            model = load(run_dir, env=None if env is None else _env_like(env, env_id, env_make))
         except ValueError as exc:
             hint = "" if env is not None or "pass env=" not in str(exc) else " (avq evaluate and avq plot: --env ID)"
-            raise ValueError(
-                f"{exc}{hint}; give a run directory (written by 'avq train') or a model file (written by agent.save)"
-            ) from None
+            raise ValueError(f"{exc}{hint}") from None
         used = model.defaults_used
         return model, used.name if used is not None else type(model).__name__
+    inside = model_file_in(run_dir)
+    if not (Path(run_dir) / "config.yml").is_file() and inside is not None:
+        raise ValueError(
+            f"{run_dir}: no config.yml here (not a directory of 'avq train'); give the model file in it, {inside}"
+        )
     config = read_run_config(run_dir)
-    if given is None:
-        given = make_env(config["env"], config.get("env_kwargs"))
+    given = _env_like(env or config["env"], config["env"], config.get("env_kwargs"))
     model_path = Path(run_dir) / "model.zip"
     if not model_path.is_file():
         checkpoint = Path(run_dir) / "checkpoint.zip"
@@ -294,6 +298,13 @@ def load_run(run_dir: str | os.PathLike, env: str | None = None) -> tuple[BaseAg
             f"run it again from the start: avq train --resume {run_dir}"
         )
     return load(model_path, env=given), config["agent"]
+
+
+def _env_like(env: str, recorded: str | None, make_args: dict[str, Any] | None) -> gym.Env:
+    """The environment of ``env``, with the ``gymnasium.make`` arguments ``make_args`` recorded with ``recorded``
+    where both name the same id (with or without a module)."""
+    same = recorded is not None and split_env_id(env)[1] == split_env_id(recorded)[1]
+    return make_env(env, make_args if same else None)
 
 
 def evaluate_run(

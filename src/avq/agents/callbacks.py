@@ -173,7 +173,9 @@ class EvalCallback(BaseCallback):
         self.best_mean_return_ = float("-inf")
 
     def on_learn_start(self, agent: BaseAgent, total_episodes: int | None, total_timesteps: int | None) -> None:
-        if self.eval_env is agent.env:
+        from avq.envs import same_env
+
+        if same_env(self.eval_env, agent.env):
             raise ValueError("eval_env is the environment the agent learns on; give it one of its own (an evaluation "
                              "resets it, which would cut the episode being learned)")  # fmt: skip
         from avq.agents.save_util import check_env_fits, env_signature

@@ -35,7 +35,9 @@ from avq.envs import as_env, recorded_env_id
 if TYPE_CHECKING:
     from avq.agents.base import BaseAgent
 
-__all__ = ["FORMAT_VERSION", "save", "load", "env_signature", "check_env_fits"]
+__all__ = [
+    "FORMAT_VERSION", "MODEL_FILES", "save", "load", "env_signature", "check_env_fits", "model_file_in", "recorded_env"
+]  # fmt: skip
 
 FORMAT_VERSION = 2
 #: Versions this avq reads: 1 (before the history and environment arguments were saved) and 2.
@@ -184,16 +186,28 @@ def _plain_json(value: Any) -> Any:
     return value.tolist() if hasattr(value, "tolist") else repr(value)
 
 
+#: The model files avq writes into a directory, the one to give first: a run's, a stopped run's, an evaluation's.
+MODEL_FILES = ("model.zip", "checkpoint.zip", "best.zip")
+
+
+def model_file_in(directory: str | os.PathLike) -> Path | None:
+    """The first of :data:`MODEL_FILES` in ``directory``, for a message to a user who gave the directory; None."""
+    return next((Path(directory) / name for name in MODEL_FILES if (Path(directory) / name).is_file()), None)
+
+
+def recorded_env(path: str | os.PathLike) -> tuple[str | None, dict[str, Any] | None]:
+    """The environment id (``module:id`` where it records the module) and the ``gymnasium.make`` arguments that a
+    model file records; None where it records none. A ValueError when ``path`` is no readable model file."""
+    meta, _ = _read_model_file(Path(path))
+    return meta.get("env_id"), meta.get("env_make")
+
+
 def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     if path.is_dir():
-        inside = [name for name in ("model.zip", "checkpoint.zip", "best.zip") if (path / name).is_file()]
+        inside = model_file_in(path)
         raise ValueError(
             f"{path} is a directory, not a model file; "
-            + (
-                f"give the model file in it: {path / inside[0]}"
-                if inside
-                else "give a model file written by agent.save"
-            )
+            + (f"give the model file in it: {inside}" if inside else "give a model file written by agent.save")
         )
     try:
         with zipfile.ZipFile(path) as zf:

@@ -29,6 +29,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _run(argv)
 
 
+#: Gymnasium's errors that say what its user must do (install an extra, give an argument); its others are bugs.
+_GYM_USER_ERRORS = ("DependencyNotInstalled", "MissingArgument")
+
+
 def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
@@ -43,16 +47,18 @@ def _run(argv: Sequence[str] | None) -> int:
     except (ValueError, OSError) as exc:  # bad values, and paths that cannot be read or written
         if os.environ.get("AVQ_DEBUG"):
             raise
-        print(f"avq: error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        print(f"avq: error: {(str(exc).splitlines() or [type(exc).__name__])[0]}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("avq: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
-        gym_error = sys.modules.get("gymnasium.error")  # (Gymnasium's errors for its users: a missing extra, say)
-        if gym_error is None or not isinstance(exc, gym_error.Error) or os.environ.get("AVQ_DEBUG"):
+        gym_error = sys.modules.get("gymnasium.error")  # (Gymnasium's errors for a user's mistake: a missing extra)
+        for_users = tuple(getattr(gym_error, name) for name in _GYM_USER_ERRORS if hasattr(gym_error, name))
+        if not isinstance(exc, for_users) or os.environ.get("AVQ_DEBUG"):
             raise
-        print(f"avq: error: the environment raised {type(exc).__name__}: {str(exc).splitlines()[0]}", file=sys.stderr)
+        message = (str(exc).splitlines() or ["(no message)"])[0]
+        print(f"avq: error: the environment raised {type(exc).__name__}: {message}", file=sys.stderr)
         return 2
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import os
 import sys
 import traceback
@@ -31,6 +32,7 @@ __all__ = [
     "random_layout",
     "refine_layout",
     "recorded_env_id",
+    "same_env",
     "register_envs",
     "split_env_id",
 ]
@@ -81,18 +83,29 @@ def recorded_env_id(env_id: str, entry_point: Any = None) -> str:
     """``env_id`` as a file should record it, so that loading it in another process makes the environment again:
     with the module that registered it, if that was given as ``module:id`` in this process
     (``"mymodule:user/Nav3D-v0"``); else with the module of its ``entry_point`` (its spec's: a ``"module:Class"``
-    string, or a class or function) where that is neither Gymnasium's nor avq's nor a script's ``__main__`` (a
-    module that registers its own class, as Gymnasium's do); else as it is."""
+    string, or a class or function, a ``functools.partial``'s function) where that is a module an import finds
+    by its name and neither Gymnasium's nor avq's (a module that registers its own class, as Gymnasium's do; not a
+    script's ``__main__``, nor a file run or loaded by its path); else as it is."""
     if split_env_id(env_id)[0] is not None:
         return env_id
-    module = _REGISTERED_BY.get(env_id)
-    if module is None:
-        where = (
-            entry_point.partition(":")[0] if isinstance(entry_point, str) else getattr(entry_point, "__module__", "")
-        )
-        top = (where or "").split(".")[0]
-        module = where if where and where != "__main__" and top not in _ALWAYS_REGISTERED else None
+    module = _REGISTERED_BY.get(env_id) or _entry_point_module(entry_point)
     return f"{module}:{env_id}" if module else env_id
+
+
+def _entry_point_module(entry_point: Any) -> str | None:
+    """The module of an entry point, if an import finds it by that name and it is not one of
+    :data:`_ALWAYS_REGISTERED`; else None."""
+    if isinstance(entry_point, str):
+        name = entry_point.partition(":")[0]
+    else:
+        name = getattr(getattr(entry_point, "func", entry_point), "__module__", None) or ""
+    if not name or name == "__main__" or name.split(".")[0] in _ALWAYS_REGISTERED:
+        return None
+    try:
+        found = importlib.util.find_spec(name)
+    except (ImportError, ValueError):  # (a parent package that is not there; a name that is no module's)
+        return None
+    return name if found is not None and found.name == name else None
 
 
 @contextmanager
@@ -138,13 +151,19 @@ def _import_registering_module(module: str, env_id: str) -> None:
             ) from None
 
 
+def same_env(env: Any, other: Any) -> bool:
+    """Whether two environments are one, wrappers aside: the same unwrapped object (an evaluation on either resets
+    both)."""
+    return getattr(env, "unwrapped", env) is getattr(other, "unwrapped", other)
+
+
 def as_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
     """``env`` itself, or the environment ``gymnasium.make(env, **make_args)`` makes of a registered id.
 
     The one place where avq makes an environment from an id: avq's own ids, any id registered by an installed
     package, and Gymnasium's ``"module:id"`` form (``"mymodule:user/Nav3D-v0"``), where importing ``module``
     registers the id; the module is imported from the working directory (as ``python -m`` does) or the
-    Python path.
+    Python path, unless the id is registered already in this process.
 
     Raises:
         ValueError: the id is unknown, its module cannot be imported (the message names the module and
@@ -159,7 +178,8 @@ def as_env(env: gym.Env | str, **make_args: Any) -> gym.Env:
     if module is not None:
         if not module or not env_id:
             raise ValueError(f"environment {env!r}: give MODULE:ID, as in 'mymodule:user/Nav3D-v0'")
-        _import_registering_module(module, env_id)
+        if env_id not in gym.registry:  # (registered already in this process: nothing to import)
+            _import_registering_module(module, env_id)
     with _cwd_on_path():  # (an entry point "module:Class" is imported by gymnasium.make)
         try:
             made = gym.make(env_id, **make_args)

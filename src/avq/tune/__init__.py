@@ -124,8 +124,9 @@ def tune(
                      timesteps=timesteps, evaluations=evaluations, metric=metric, eval_episodes=eval_episodes,
                      env_kwargs=env_kwargs, fixed=fixed, space=space, backend=backend, address=address)  # fmt: skip
         study, given, searched = _open(url, out if storage is None else None, asked)
-    except ValueError:  # (a refused command leaves nothing behind)
-        remove_new(made)
+    except BaseException:  # (a refused or interrupted command leaves nothing behind; a study made meanwhile stays)
+        if made and (not made[0].exists() or not _holds_a_study(url)):
+            remove_new(made)
         raise
     agent, env, study_name = given["agent"], given["env"], study.study_name
     c0 = counts(study)
@@ -293,6 +294,14 @@ def best_entry(storage: str, study_name: str | None = None) -> str:
     return yaml.safe_dump({split_env_id(env)[1]: entry}, sort_keys=False, width=110)  # (keyed as the entries are)
 
 
+def _holds_a_study(url: str) -> bool:
+    """Whether the storage at ``url`` holds a study (True when that cannot be told: it is kept)."""
+    try:
+        return bool(study_names(open_storage(url)))
+    except Exception:  # noqa: BLE001  (a storage that cannot be read now is not removed)
+        return True
+
+
 def _open(url: str, own: str | os.PathLike | None, asked: dict[str, Any]) -> tuple[Any, dict[str, Any], dict]:
     """:func:`tune`'s study at ``url``, made or continued with the settings it records (``asked``: :func:`tune`'s
     arguments of the study), after every check of them: a ValueError before the study is made. Returns the
@@ -317,7 +326,7 @@ def _open(url: str, own: str | os.PathLike | None, asked: dict[str, Any]) -> tup
     study_name = study_name or default_name(agent, env)
     if own is not None and names and study_name not in names:
         raise ValueError(
-            f"--out {own} holds the study {names[0]!r} already, and its best.yaml; give another --out for the "
+            f"{own} holds the study {names[0]!r} already, and its best.yaml; give another --out for the "
             f"study {study_name!r}, or continue that one with --out {own} alone"
         )
     before = recorded(store, study_name) or {}
@@ -339,7 +348,7 @@ def _open(url: str, own: str | os.PathLike | None, asked: dict[str, Any]) -> tup
     given["seeds"] = given["seeds"] or list(spawn_seeds(seed, 3))
     if given["metric"] not in METRICS:
         raise ValueError(f"unknown metric {given['metric']!r}; choose one of {', '.join(METRICS)}")
-    check_same(before, given, study_name, url)
+    check_same(before, given, study_name, url, "--study-name" if own is None else "--out")
     space = asked["space"]
     searched = spaces.read_space(space) if space is not None else spaces.agent_space(agent)
     where = f"search space {space}" if space is not None else f"avq/agents/defaults/{agent}.yaml 'search'"

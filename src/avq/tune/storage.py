@@ -179,14 +179,15 @@ def recorded(storage: Any, name: str) -> dict[str, Any] | None:
     return dict(optuna.load_study(study_name=name, storage=storage).user_attrs)
 
 
-def check_same(before: dict[str, Any], now: dict[str, Any], name: str, url: str) -> None:
-    """Refuse to continue study ``name`` with values other than those it recorded."""
+def check_same(before: dict[str, Any], now: dict[str, Any], name: str, url: str, other: str = "--study-name") -> None:
+    """Refuse to continue study ``name`` with values other than those it recorded; ``other``: the option that gives
+    a new study its place (``--study-name`` in a storage of several, ``--out`` where the storage is its own)."""
     for key in (*IDENTITY, *OBJECTIVE):
         if key in before and _plain(before[key]) != _plain(now.get(key)):
             what = "task" if key in IDENTITY else "objective"
             raise ValueError(
                 f"study {name!r} in {shown(url)} was tuned with {key} {before[key]!r}, not {now.get(key)!r} "
-                f"(another {what}); give another --study-name for this one, or continue that study "
+                f"(another {what}); give another {other} for this one, or continue that study "
                 f"with {key} {before[key]!r}"
             )
 
