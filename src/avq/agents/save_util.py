@@ -198,11 +198,12 @@ def model_file_in(directory: str | os.PathLike) -> Path | None:
 def recorded_env(path: str | os.PathLike) -> tuple[str | None, dict[str, Any] | None]:
     """The environment id (``module:id`` where it records the module) and the ``gymnasium.make`` arguments that a
     model file records; None where it records none. A ValueError when ``path`` is no readable model file."""
-    meta, _ = _read_model_file(Path(path))
+    meta, _ = _read_model_file(Path(path), header_only=True)
     return meta.get("env_id"), meta.get("env_make")
 
 
-def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+def _read_model_file(path: Path, header_only: bool = False) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """A model file's header and arrays, checked (``header_only``: its header alone, the arrays not read)."""
     if path.is_dir():
         inside = model_file_in(path)
         raise ValueError(
@@ -212,7 +213,7 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     try:
         with zipfile.ZipFile(path) as zf:
             meta = json.loads(zf.read("meta.json").decode("utf-8"))
-            raw = zf.read("arrays.npz")
+            raw = b"" if header_only else zf.read("arrays.npz")
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no such model file") from None
     except Exception as exc:  # noqa: BLE001  (a damaged file can fail anywhere in zipfile: BadZipFile, zlib.error,
@@ -225,6 +226,8 @@ def _read_model_file(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
             f"{path}: model format version {meta.get('format_version')} is not supported "
             f"(this avq reads versions {', '.join(map(str, _READABLE_VERSIONS))})"
         )
+    if header_only:
+        return meta, {}
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}

@@ -28,6 +28,7 @@ _DESCRIPTION = (
 
 def add_tune_command(command: Any) -> None:
     """Add ``avq tune`` through the parser's ``command(name, **kwargs)`` helper."""
+    from avq.agents.registry import AGENTS
     from avq.cli.parser import ENV_HELP, positive_int
 
     tu = command("tune", help="tune an agent's parameters for a task with Optuna", description=_DESCRIPTION)
@@ -41,8 +42,6 @@ def add_tune_command(command: Any) -> None:
         "--study-name)",
     )
     tu.add_argument("--env", help=ENV_HELP + " (default: the study's)")
-    from avq.agents.registry import AGENTS
-
     tu.add_argument("--agent", help=f"agent name (default: the study's, else avq): {', '.join(AGENTS)}")
     tu.add_argument("--env-kwargs", action="append", metavar="KEY=VALUE", help="argument to gymnasium.make")
     tu.add_argument("--set", action="append", metavar="KEY=VALUE", help="agent parameter fixed in every trial")
