@@ -29,6 +29,12 @@ an exponential:
   mean of 20 consecutive episodes reaches Gymnasium's reward threshold (MountainCar -110, CartPole 475), cells,
   wall seconds.
 
+``--lattice`` prints, for each d (2, 3, 4, 6; 8 has 10^8 lattice points), what an explorer of the lattice of
+moves faces from the fixed start: the goal's distance in moves (``SlabMaze.shortest_steps``), and the lattice
+points nearer than that distance less the goal's reward (``SlabMaze.lattice_distances``). With untried decisions
+worth 0 and -1 a move, R-max's agent on that lattice (``grid-ps``) values every untried decision there above the
+path to the goal, so it tries them all before it heads for the goal; no learning, a few seconds.
+
 ``--agents dqn`` adds Stable-Baselines3's DQN with RL Baselines3 Zoo's hyper-parameters (:data:`ZOO_DQN`),
 imported only then (``pip install stable-baselines3 torch``; not an extra of avq). Its cells are the
 Q-network's parameters. Rows of agents not run are kept from the CSV, so that an agent can be added later.
@@ -38,6 +44,7 @@ Q-network's parameters. Rows of agents not run are kept from the CSV, so that an
     python benchmarks/dimensions.py --plot                      # docs/figures/dimensions*.png, the fits
     python benchmarks/dimensions.py --dims --agents dqn         # add DQN's rows
     python benchmarks/dimensions.py --dims --start fixed        # docs/data/dimensions_fixed.csv
+    python benchmarks/dimensions.py --lattice                   # the explorer's task at each d: a table
     python benchmarks/dimensions.py --quick --dims --irrelevant --plot --jobs 1 --out /tmp/dims   # a check
 """
 
@@ -55,8 +62,10 @@ from joblib import Parallel, delayed
 
 import avq
 from avq.agents.registry import agent_defaults
-from avq.envs import IrrelevantDims
+from avq.envs import IrrelevantDims, SlabMaze
+from avq.envs.grid_maze import GOAL_REWARD
 from avq.envs.slab_geometry import slab_move
+from avq.envs.slab_maze import MAX_LATTICE
 
 DIMS, QUICK_DIMS = (2, 3, 4, 6, 8), (2, 3)
 KS, QUICK_KS = (0, 2, 4, 8), (0, 2)
@@ -506,6 +515,18 @@ def plot(out: Path) -> None:
         print(f"wrote {figures / 'dimensions_irrelevant.png'}")
 
 
+def lattice_table(ds: list[int]) -> None:
+    """The lattice of moves through the fixed start at each d: the goal's distance, and the points nearer."""
+    print("| d | lattice points | moves to the goal, D (without slabs) | points fewer than D - 11 moves away |")
+    print("|---|---|---|---|")
+    for d in ds:
+        maze = SlabMaze(dims=d, move=MOVE, layout_seed=d, start="fixed")
+        dist, _ = maze.lattice_distances()
+        steps, free = maze.shortest_steps(), d * round((1.0 - maze.goal_size) / MOVE)
+        near = int(((dist >= 0) & (dist < steps - 1 - GOAL_REWARD)).sum())  # (untried there: above the path)
+        print(f"| {d} | {dist.size:,} | {steps} ({free}) | {near:,} ({near / dist.size:.0%}) |")
+
+
 def seeds_of(text: str) -> list[int]:
     lo, _, hi = text.partition("-")
     return list(range(int(lo), int(hi or lo) + 1))
@@ -516,6 +537,7 @@ def main() -> None:
     ap.add_argument("--dims", action="store_true", help="SlabMaze at growing d")
     ap.add_argument("--irrelevant", action="store_true", help="MountainCar and CartPole with noise dimensions")
     ap.add_argument("--plot", action="store_true", help="figures from OUT/data's CSVs, and the fits")
+    ap.add_argument("--lattice", action="store_true", help="the lattice of moves an explorer faces at each d")
     ap.add_argument("--quick", action="store_true", help="d = 2, 3; k = 0, 2; seeds 0-1; small budgets")
     ap.add_argument("--agents", default=None, help="comma-separated (default: the study's; dqn: SB3's DQN)")
     ap.add_argument("--seeds", default=None, help="a range, as 0-4 (the default; --quick 0-1)")
@@ -528,8 +550,8 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs", help="CSVs in OUT/data, figures in OUT/figures (default docs)")
     args = ap.parse_args()
-    if not (args.dims or args.irrelevant or args.plot):
-        ap.error("choose --dims, --irrelevant and/or --plot")
+    if not (args.dims or args.irrelevant or args.plot or args.lattice):
+        ap.error("choose --dims, --irrelevant, --plot and/or --lattice")
     out = Path(args.out)
     if args.quick and out.resolve() == (Path(__file__).resolve().parents[1] / "docs"):
         ap.error("--quick is a check: write it elsewhere than docs (e.g. --out /tmp/dims)")
@@ -575,6 +597,13 @@ def main() -> None:
             rows = write_csv(out / "data" / csv_name, IRR_FIELDS, new, ("task", "agent", "k"))
             irrelevant_table(rows)
         print(f"({time.perf_counter() - t0:.0f} s with {args.jobs} jobs)\n")
+    if args.lattice:
+        ds = [int(v) for v in args.d.split(",")] if args.d else [d for d in DIMS if grid_bins(d) <= MAX_LATTICE]
+        if too_large := [d for d in ds if grid_bins(d) > MAX_LATTICE]:
+            ap.error(
+                f"--lattice --d {args.d}: d = {too_large} has more than {MAX_LATTICE:,} lattice points; give d up to 6"
+            )
+        lattice_table(ds)
     if args.plot:
         plot(out)
 

@@ -305,6 +305,78 @@ def test_an_opening_narrower_than_a_move_does_not_count():
         SlabMaze(walls=narrow, start="fixed")
 
 
+# -- shortest paths over the lattice of moves ----------------------------------------------------
+
+
+def test_shortest_steps_detours_through_the_opening():
+    # From (0.05, 0.85): down to y = 0.35 (5 moves), across to x = 0.95 (9), up to y = 0.95 (6): 20, where
+    # without the slab 9 + 1 = 10 would do; from the fixed start 2 up, 9 across, 7 up: 18.
+    env = SlabMaze(walls=DOOR)
+    assert env.shortest_steps((0.05, 0.85)) == 20
+    assert env.shortest_steps() == 18
+    dist, points = env.lattice_distances((0.05, 0.85))
+    np.testing.assert_allclose(points[0], np.arange(10) * 0.1 + 0.05)
+    assert dist[0, 8] == 0 and dist[4, 8] == 4  # (the start; four moves right, against the slab)
+    assert dist[5, 8] == 5 + 5 + 5  # (just across the slab: down to the opening, across, up again)
+    assert dist[9, 9] == 20 and (dist >= 0).all()
+
+
+def test_lattice_through_a_start_off_the_default_lattice():
+    dist, points = SlabMaze(walls=DOOR).lattice_distances((0.0, 0.0))
+    assert dist.shape == (11, 11) and points[1][-1] == pytest.approx(1.0)
+    assert dist[0, 0] == 0 and dist[9, 9] == 2 + 9 + 7  # (to (0.9, 0.9): up to y = 0.2, across, up)
+
+
+def test_a_pocket_has_no_path_and_its_points_are_unreachable_from_outside():
+    env = SlabMaze(walls=POCKET, start="fixed")
+    assert env.shortest_steps((0.75, 0.25)) == -1
+    dist, points = env.lattice_distances()
+    pocket = np.outer(points[0] >= 0.5, points[1] < 0.5)  # ([x, y])
+    np.testing.assert_array_equal(dist == -1, pocket)
+
+
+def distances_through_step(env: SlabMaze, start) -> dict[tuple[float, ...], int]:
+    """Least moves from ``start`` to every lattice point, by a breadth-first search through ``step`` (a walk
+    ends where ``step`` terminates, in the goal)."""
+    dist, todo = {tuple(np.round(start, 9)): 0}, deque([np.asarray(start, dtype=np.float64)])
+    while todo:
+        p = todo.popleft()
+        for a in range(env.action_space.n):
+            env.reset(options={"start": p})
+            _, _, terminated, _, _ = env.step(a)
+            key = tuple(np.round(env.position, 9))
+            if key not in dist:
+                dist[key] = dist[tuple(np.round(p, 9))] + 1
+                if not terminated:
+                    todo.append(env.position)
+    return dist
+
+
+@pytest.mark.parametrize(("d", "walls", "seed"), [(2, 4, 0), (3, 3, 1), (3, 6, 2)])
+def test_lattice_distances_agree_with_a_search_through_step(d, walls, seed):
+    env = SlabMaze(dims=d, walls=walls, layout_seed=seed)
+    start = env.start_positions(1, seed=seed)[0]
+    dist, points = env.lattice_distances(start)
+    by_step = distances_through_step(env, start)
+    grid = np.stack(np.meshgrid(*points, indexing="ij"), axis=-1).reshape(-1, d)
+    expected = [by_step.get(tuple(np.round(p, 9)), -1) for p in grid]
+    np.testing.assert_array_equal(dist.ravel(), expected)
+    assert env.shortest_steps(start) == min(v for k, v in by_step.items() if min(k) >= 1 - env.goal_size)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "start", "match"),
+    [
+        ({"dims": 8}, None, r"100,000,000 points \(move=0.1, dims=8\), more than the 2,000,000 searched; use a "),
+        ({}, (0.95, 0.95), r"is in the goal; choose a point outside it"),
+        ({}, (0.5, 1.5), r"is outside the cube"),
+    ],
+)
+def test_shortest_steps_refuses_naming_the_problem_and_the_fix(kwargs, start, match):
+    with pytest.raises(ValueError, match=match):
+        SlabMaze(**kwargs).shortest_steps(start)
+
+
 # -- pictures ---------------------------------------------------------------------------------
 
 

@@ -27,7 +27,10 @@ from numba import njit
 
 from avq.envs.grid_maze import BUMP_REWARD, GOAL_REWARD, MOVE_REWARD
 
-__all__ = ["Slabs", "slab_move", "parse_slabs", "draw_slabs", "regions_reaching_goal", "unreachable_message", "EPS"]
+__all__ = [
+    "Slabs", "slab_move", "parse_slabs", "draw_slabs", "regions_reaching_goal", "unreachable_message",
+    "lattice_distances", "EPS",
+]  # fmt: skip
 
 #: Rounding tolerance of the width of an opening (positions are sums of moves).
 EPS = 1e-9
@@ -82,6 +85,53 @@ def slab_move(
         if pos[k] < goal_low:
             return MOVE_REWARD, False, False
     return GOAL_REWARD, True, False
+
+
+@njit(cache=True)
+def lattice_distances(
+    origin: np.ndarray, counts: np.ndarray, source: int, move: float, slabs: Slabs, goal_low: float
+) -> np.ndarray:  # pragma: no cover  (compiled)
+    """Least moves from the lattice point ``source`` to every point of a lattice of moves; -1 where unreachable.
+
+    The lattice has ``counts[k]`` points on axis ``k``, at ``origin[k] + j * move``; a point's flat index is its
+    row-major index (``np.ravel_multi_index`` over ``counts``). A breadth-first search whose moves are
+    :func:`slab_move`'s, so they collide where a step would, and that ends at the goal's points, as an episode does.
+    """
+    d, n = counts.shape[0], 1
+    for k in range(d):
+        n *= counts[k]
+    stride = np.ones(d, dtype=np.int64)
+    for k in range(d - 2, -1, -1):
+        stride[k] = stride[k + 1] * counts[k + 1]
+    dist = np.full(n, -1, dtype=np.int64)
+    queue = np.empty(n, dtype=np.int64)
+    dist[source], queue[0] = 0, source
+    head, tail = 0, 1
+    pos, index = np.empty(d), np.empty(d, dtype=np.int64)
+    while head < tail:
+        q = queue[head]
+        head += 1
+        in_goal = True
+        for k in range(d):
+            index[k] = (q // stride[k]) % counts[k]
+            in_goal = in_goal and origin[k] + index[k] * move >= goal_low
+        if in_goal:
+            continue  # (the walk ends there)
+        for a in range(2 * d):
+            k, step = a >> 1, 1 - 2 * (a & 1)
+            j = index[k] + step
+            if j < 0 or j >= counts[k]:
+                continue  # (leaves the lattice: leaves the cube, as the lattice fills it)
+            for i in range(d):
+                pos[i] = origin[i] + index[i] * move
+            if slab_move(pos, k, step * move, slabs, goal_low)[2]:
+                continue
+            r = q + step * stride[k]
+            if dist[r] < 0:
+                dist[r] = dist[q] + 1
+                queue[tail] = r
+                tail += 1
+    return dist
 
 
 def _slabs(dims: int, axis: list[int], position: list[float], low: np.ndarray, high: np.ndarray) -> Slabs:

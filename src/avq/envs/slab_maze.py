@@ -21,6 +21,7 @@ from avq.envs.slab_geometry import (
     EPS,
     Slabs,
     draw_slabs,
+    lattice_distances,
     parse_slabs,
     regions_reaching_goal,
     slab_move,
@@ -33,6 +34,8 @@ __all__ = ["SlabMaze"]
 MIN_DIMS, MAX_DIMS = 2, 8
 #: Cells a side of the ``ansi`` picture at most.
 MAX_PICTURE = 40
+#: The most points of a lattice of moves that :meth:`SlabMaze.lattice_distances` searches (about 80 MB).
+MAX_LATTICE = 2_000_000
 
 
 class SlabMaze(gym.Env[np.ndarray, np.int64]):
@@ -97,8 +100,9 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
     ## Size
     :attr:`full_resolution_states` is ``ceil(1 / move)^d``, the points of a grid with one point per move on
     every axis: at the default move, 100 for ``d = 2``, 10^3, 10^4, 10^6 and 10^8 for ``d = 3, 4, 6, 8``.
-    :meth:`start_positions` draws evaluation starts with a seed of their own. There is no exact
-    ``shortest_steps``: a search over the lattice of moves has ``ceil(1 / move)^d`` points, 10^8 at ``d = 8``.
+    :meth:`start_positions` draws evaluation starts with a seed of their own. :meth:`shortest_steps` and
+    :meth:`lattice_distances` search the lattice of moves through a start, up to :data:`MAX_LATTICE` points
+    (``d = 6`` at the default move; ``d = 8`` has 10^8).
     """
 
     metadata = {"render_modes": ["ansi"], "render_fps": 8}
@@ -256,6 +260,44 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         (not from ``self.np_random``): the same points for every agent. Start there with
         ``reset(options={"start": point})``."""
         return self._random_points(np.random.default_rng(check_int("seed", seed, 0)), check_int("n", n, 0))
+
+    def lattice_distances(self, start: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """Least moves from ``start`` to every point of the lattice of moves through it, slip aside.
+
+        ``start``: a point of the cube outside the goal; None, the fixed start ``(move / 2, ..., move / 2)``.
+        Returns ``(distances, points)``: ``distances`` an int64 array with one axis per dimension, -1 where the
+        walls leave a point unreachable, and ``points`` the lattice's coordinates on each axis, a ``(d,)`` object
+        array of float64 arrays: ``distances[i, j, ...]`` is the point ``(points[0][i], points[1][j], ...)``. A
+        breadth-first search whose moves collide where :meth:`step`'s would and whose walks end in the goal.
+
+        Raises:
+            ValueError: for a start outside the cube or in the goal, or a lattice of more than
+                :data:`MAX_LATTICE` points.
+        """
+        x = np.full(self.dims, self.move / 2) if start is None else self._checked_start(start)
+        below = np.floor(x / self.move + EPS).astype(np.int64)
+        counts = below + np.floor((1.0 - x) / self.move + EPS).astype(np.int64) + 1
+        size = int(np.prod(counts.astype(object)))
+        if size > MAX_LATTICE:
+            raise ValueError(
+                f"the lattice of moves through this start has {size:,} points (move={self.move}, dims={self.dims}), "
+                f"more than the {MAX_LATTICE:,} searched; use a larger move or fewer dims"
+            )
+        origin = x - below * self.move
+        source = int(np.ravel_multi_index(tuple(below), tuple(counts)))
+        dist = lattice_distances(origin, counts, source, self.move, self._slabs, self._goal_low)
+        points = np.empty(self.dims, dtype=object)
+        points[:] = [origin[k] + self.move * np.arange(counts[k]) for k in range(self.dims)]
+        return dist.reshape(tuple(counts)), points
+
+    def shortest_steps(self, start: Any = None) -> int:
+        """The least number of moves from ``start`` (None: the fixed start) to the goal, slip aside; -1 if the walls
+        leave no path. From :meth:`lattice_distances`, whose errors it raises."""
+        dist, points = self.lattice_distances(start)
+        in_goal = [p >= self._goal_low - EPS for p in points]
+        reached = dist[np.ix_(*in_goal)]
+        reached = reached[reached >= 0]
+        return int(reached.min()) if reached.size else -1
 
     def _random_points(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``n`` points uniform in the cube outside the goal (drawn again while in the goal)."""
