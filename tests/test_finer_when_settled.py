@@ -95,4 +95,4 @@ def test_a_bad_setting_gets_a_clear_error_and_the_maze_entries_keep_it_off():
         avq.PlanningAVQ(gym.make("MountainCar-v0"), finer_when_settled=-1)
     for task in ("avq/GridMaze-v0", "avq/RobotMaze-v0"):
         assert avq.make_agent("avq", task, seed=0).get_params()["finer_when_settled"] == 0
-    assert avq.make_agent("avq", "MountainCar-v0", seed=0).get_params()["finer_when_settled"] == 2
+    assert avq.make_agent("avq", "MountainCar-v0", seed=0).get_params()["finer_when_settled"] == 1

@@ -175,7 +175,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         obs_bounds: Sequence[Sequence[float] | None] | None = None,
         ignore_noise: bool = True,
         reweight_when_full: bool = True,
-        finer_when_settled: int = 2,
+        finer_when_settled: int = 1,
         max_cells: int = 2048,
         split_after: int | None = 5,
         rho: float | None = None,
