@@ -63,7 +63,7 @@ from joblib import Parallel, delayed
 import avq
 from avq.agents.registry import agent_defaults
 from avq.envs import IrrelevantDims, SlabMaze
-from avq.envs.grid_maze import GOAL_REWARD
+from avq.envs.grid_maze import GOAL_REWARD, MOVE_REWARD
 from avq.envs.slab_geometry import slab_move
 from avq.envs.slab_maze import MAX_LATTICE
 
@@ -522,8 +522,10 @@ def lattice_table(ds: list[int]) -> None:
     for d in ds:
         maze = SlabMaze(dims=d, move=MOVE, layout_seed=d, start="fixed")
         dist, _ = maze.lattice_distances()
-        steps, free = maze.shortest_steps(), d * round((1.0 - maze.goal_size) / MOVE)
-        near = int(((dist >= 0) & (dist < steps - 1 - GOAL_REWARD)).sum())  # (untried there: above the path)
+        steps = maze.shortest_steps()
+        free = SlabMaze(dims=d, walls=[], move=MOVE, start="fixed").shortest_steps()
+        path = (steps - 1) * MOVE_REWARD + GOAL_REWARD  # (the path's return; an untried decision is worth 0)
+        near = int(((dist >= 0) & (dist * MOVE_REWARD > path)).sum())
         print(f"| {d} | {dist.size:,} | {steps} ({free}) | {near:,} ({near / dist.size:.0%}) |")
 
 

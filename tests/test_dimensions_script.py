@@ -22,7 +22,7 @@ def test_lattice_prints_the_goals_distance_and_the_points_whose_untried_decision
         near = sum(1 for k in dist.ravel() if k >= 0 and -k > -(steps - 1) + 10)
         row = f"| {d} | {10**d:,} | {steps} ({9 * d}) | {near:,} ({near / 10**d:.0%}) |"
         assert row in out.stdout.splitlines()
-    assert np.all(dist >= 0)  # (a drawn maze leads everywhere)
+        assert np.all(dist >= 0)  # (a drawn maze leads everywhere; the goal is one lattice point, reached from outside)
 
 
 def test_lattice_beyond_its_limit_is_refused_with_the_fix():

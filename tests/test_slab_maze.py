@@ -322,9 +322,20 @@ def test_shortest_steps_detours_through_the_opening():
 
 
 def test_lattice_through_a_start_off_the_default_lattice():
-    dist, points = SlabMaze(walls=DOOR).lattice_distances((0.0, 0.0))
-    assert dist.shape == (11, 11) and points[1][-1] == pytest.approx(1.0)
-    assert dist[0, 0] == 0 and dist[9, 9] == 2 + 9 + 7  # (to (0.9, 0.9): up to y = 0.2, across, up)
+    env = SlabMaze(walls=DOOR)
+    dist, points = env.lattice_distances((0.03, 0.53))
+    assert dist.shape == (10, 10) and points[1][0] == pytest.approx(0.03) and points[1][-1] == pytest.approx(0.93)
+    assert dist[0, 5] == 0 and dist[9, 9] == 2 + 9 + 6  # (to (0.93, 0.93): down to y = 0.33, across, up)
+    assert env.shortest_steps((0.03, 0.53)) == 17
+
+
+@pytest.mark.parametrize("x", [0.0, 0.3, 0.7, 1.0 - 1e-12])
+def test_the_lattice_stays_in_the_cube_where_a_start_lies_on_the_moves_own_lattice(x):
+    # 0.3 / 0.1 rounds to 2.9999999999999996: three moves down from 0.3 would leave the cube by 6e-17.
+    dist, points = SlabMaze(walls=DOOR).lattice_distances((x, 0.05))
+    for p in points:
+        assert p.min() >= 0.0 and p.max() <= 1.0 and np.allclose(np.diff(p), 0.1)
+    assert dist[np.argmin(np.abs(points[0] - x)), 0] == 0 and (dist[:, :9] >= 0).all()
 
 
 def test_a_pocket_has_no_path_and_its_points_are_unreachable_from_outside():
@@ -333,6 +344,15 @@ def test_a_pocket_has_no_path_and_its_points_are_unreachable_from_outside():
     dist, points = env.lattice_distances()
     pocket = np.outer(points[0] >= 0.5, points[1] < 0.5)  # ([x, y])
     np.testing.assert_array_equal(dist == -1, pocket)
+
+
+def test_walks_end_in_the_goal_so_its_far_corner_is_not_reached():
+    # No slabs, a goal of side 0.3: its lattice points are 0.75, 0.85, 0.95 on each axis; (0.75, 0.75) is 7 + 7
+    # moves from the fixed start, and the walks end there, so (0.95, 0.95), behind other goal points, is never reached.
+    env = SlabMaze(walls=[], goal_size=0.3)
+    dist, points = env.lattice_distances()
+    assert env.shortest_steps() == 14 and dist[7, 7] == 14 and dist[7, 9] == 16 and dist[9, 9] == -1
+    assert (dist[:7] >= 0).all() and (dist[:, :7] >= 0).all()
 
 
 def distances_through_step(env: SlabMaze, start) -> dict[tuple[float, ...], int]:

@@ -29,10 +29,10 @@ from avq.envs.grid_maze import BUMP_REWARD, GOAL_REWARD, MOVE_REWARD
 
 __all__ = [
     "Slabs", "slab_move", "parse_slabs", "draw_slabs", "regions_reaching_goal", "unreachable_message",
-    "lattice_distances", "EPS",
+    "lattice_distances", "in_goal", "EPS",
 ]  # fmt: skip
 
-#: Rounding tolerance of the width of an opening (positions are sums of moves).
+#: Rounding tolerance of the width of an opening and of a lattice of moves (positions are sums of moves).
 EPS = 1e-9
 
 
@@ -81,21 +81,31 @@ def slab_move(
                 if pos[k] < slabs.low[s, k] or pos[k] > slabs.high[s, k]:
                     return BUMP_REWARD, False, True
     pos[axis] = new
-    for k in range(pos.shape[0]):
-        if pos[k] < goal_low:
-            return MOVE_REWARD, False, False
-    return GOAL_REWARD, True, False
+    if in_goal(pos, goal_low):
+        return GOAL_REWARD, True, False
+    return MOVE_REWARD, False, False
+
+
+@njit(cache=True)
+def in_goal(pos: np.ndarray, goal_low: float) -> bool:  # pragma: no cover  (compiled)
+    """Whether ``pos`` is in the goal: every coordinate at least ``goal_low``."""
+    k, n = 0, pos.shape[0]
+    while k < n and pos[k] >= goal_low:  # (a loop: no array made at every step)
+        k += 1
+    return k == n
 
 
 @njit(cache=True)
 def lattice_distances(
     origin: np.ndarray, counts: np.ndarray, source: int, move: float, slabs: Slabs, goal_low: float
-) -> np.ndarray:  # pragma: no cover  (compiled)
-    """Least moves from the lattice point ``source`` to every point of a lattice of moves; -1 where unreachable.
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover  (compiled)
+    """Least moves from the lattice point ``source`` to every point of a lattice of moves, and which points are in
+    the goal: ``(distances, goal)``, flat arrays, -1 where no walk from ``source`` gets.
 
     The lattice has ``counts[k]`` points on axis ``k``, at ``origin[k] + j * move``; a point's flat index is its
     row-major index (``np.ravel_multi_index`` over ``counts``). A breadth-first search whose moves are
-    :func:`slab_move`'s, so they collide where a step would, and that ends at the goal's points, as an episode does.
+    :func:`slab_move`'s, so they collide where a step from those coordinates would, and whose walks end in the goal
+    (:func:`in_goal`), as an episode does: a point of the goal reached only through the goal is -1.
     """
     d, n = counts.shape[0], 1
     for k in range(d):
@@ -104,26 +114,25 @@ def lattice_distances(
     for k in range(d - 2, -1, -1):
         stride[k] = stride[k + 1] * counts[k + 1]
     dist = np.full(n, -1, dtype=np.int64)
+    goal = np.zeros(n, dtype=np.bool_)
     queue = np.empty(n, dtype=np.int64)
     dist[source], queue[0] = 0, source
     head, tail = 0, 1
-    pos, index = np.empty(d), np.empty(d, dtype=np.int64)
+    pos, start = np.empty(d), np.empty(d)
     while head < tail:
         q = queue[head]
         head += 1
-        in_goal = True
         for k in range(d):
-            index[k] = (q // stride[k]) % counts[k]
-            in_goal = in_goal and origin[k] + index[k] * move >= goal_low
-        if in_goal:
+            start[k] = origin[k] + ((q // stride[k]) % counts[k]) * move
+        if in_goal(start, goal_low):
+            goal[q] = True
             continue  # (the walk ends there)
         for a in range(2 * d):
             k, step = a >> 1, 1 - 2 * (a & 1)
-            j = index[k] + step
+            j = (q // stride[k]) % counts[k] + step
             if j < 0 or j >= counts[k]:
-                continue  # (leaves the lattice: leaves the cube, as the lattice fills it)
-            for i in range(d):
-                pos[i] = origin[i] + index[i] * move
+                continue  # (leaves the lattice, which ends within a move of the cube's faces: a collision)
+            pos[:] = start
             if slab_move(pos, k, step * move, slabs, goal_low)[2]:
                 continue
             r = q + step * stride[k]
@@ -131,7 +140,7 @@ def lattice_distances(
                 dist[r] = dist[q] + 1
                 queue[tail] = r
                 tail += 1
-    return dist
+    return dist, goal
 
 
 def _slabs(dims: int, axis: list[int], position: list[float], low: np.ndarray, high: np.ndarray) -> Slabs:

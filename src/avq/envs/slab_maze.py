@@ -34,7 +34,7 @@ __all__ = ["SlabMaze"]
 MIN_DIMS, MAX_DIMS = 2, 8
 #: Cells a side of the ``ansi`` picture at most.
 MAX_PICTURE = 40
-#: The most points of a lattice of moves that :meth:`SlabMaze.lattice_distances` searches (about 80 MB).
+#: The most points of a lattice of moves that :meth:`SlabMaze.lattice_distances` searches (about 32 MB).
 MAX_LATTICE = 2_000_000
 
 
@@ -169,7 +169,7 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         if given is not None:
             self._pos[:] = self._checked_start(given)
         elif self.start == "fixed":
-            self._pos[:] = self.move / 2
+            self._pos[:] = self._fixed_start()
         else:
             self._pos[:] = self._random_points(self.np_random, 1)[0]
         self._steps = 0
@@ -265,39 +265,55 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         """Least moves from ``start`` to every point of the lattice of moves through it, slip aside.
 
         ``start``: a point of the cube outside the goal; None, the fixed start ``(move / 2, ..., move / 2)``.
-        Returns ``(distances, points)``: ``distances`` an int64 array with one axis per dimension, -1 where the
-        walls leave a point unreachable, and ``points`` the lattice's coordinates on each axis, a ``(d,)`` object
-        array of float64 arrays: ``distances[i, j, ...]`` is the point ``(points[0][i], points[1][j], ...)``. A
-        breadth-first search whose moves collide where :meth:`step`'s would and whose walks end in the goal.
+        Returns ``(distances, points)``: ``distances`` an int64 array with one axis per dimension, and ``points`` the
+        lattice's coordinates on each axis, a ``(d,)`` object array of float64 arrays: ``distances[i, j, ...]`` is
+        the point ``(points[0][i], points[1][j], ...)``. A breadth-first search whose moves collide where
+        :meth:`step`'s would and whose walks end in the goal, as episodes do; -1 where no walk from ``start`` gets
+        (walls; a point of the goal reached only through the goal). The lattice's points are ``start`` plus whole
+        moves, inside the cube. Its coordinates and :meth:`step`'s positions are sums of moves rounded differently,
+        so where a point lies within rounding of the goal's edge or of a slab's plane (a start on the lattice of
+        ``move`` itself, such as ``(0, 0)``) the two can disagree; from the starts that :meth:`reset` draws they
+        agree.
 
         Raises:
             ValueError: for a start outside the cube or in the goal, or a lattice of more than
                 :data:`MAX_LATTICE` points.
         """
-        x = np.full(self.dims, self.move / 2) if start is None else self._checked_start(start)
-        below = np.floor(x / self.move + EPS).astype(np.int64)
-        counts = below + np.floor((1.0 - x) / self.move + EPS).astype(np.int64) + 1
-        size = int(np.prod(counts.astype(object)))
-        if size > MAX_LATTICE:
-            raise ValueError(
-                f"the lattice of moves through this start has {size:,} points (move={self.move}, dims={self.dims}), "
-                f"more than the {MAX_LATTICE:,} searched; use a larger move or fewer dims"
-            )
-        origin = x - below * self.move
-        source = int(np.ravel_multi_index(tuple(below), tuple(counts)))
-        dist = lattice_distances(origin, counts, source, self.move, self._slabs, self._goal_low)
-        points = np.empty(self.dims, dtype=object)
-        points[:] = [origin[k] + self.move * np.arange(counts[k]) for k in range(self.dims)]
-        return dist.reshape(tuple(counts)), points
+        dist, points, _ = self._lattice(start)
+        return dist, points
 
     def shortest_steps(self, start: Any = None) -> int:
         """The least number of moves from ``start`` (None: the fixed start) to the goal, slip aside; -1 if the walls
         leave no path. From :meth:`lattice_distances`, whose errors it raises."""
-        dist, points = self.lattice_distances(start)
-        in_goal = [p >= self._goal_low - EPS for p in points]
-        reached = dist[np.ix_(*in_goal)]
-        reached = reached[reached >= 0]
+        dist, _, goal = self._lattice(start)
+        reached = dist[goal & (dist >= 0)]
         return int(reached.min()) if reached.size else -1
+
+    def _lattice(self, start: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`lattice_distances`' ``(distances, points)`` and which points are in the goal."""
+        x = self._fixed_start() if start is None else self._checked_start(start)
+        m = self.move
+        below = np.floor(x / m + EPS).astype(np.int64)
+        below -= x - below * m < 0.0  # (no point below the cube's face by rounding)
+        above = np.floor((1.0 - x) / m + EPS).astype(np.int64)
+        origin = x - below * m
+        above -= origin + (below + above) * m > 1.0  # (nor above it)
+        counts = below + above + 1
+        size = int(np.prod(counts.astype(object)))
+        if size > MAX_LATTICE:
+            raise ValueError(
+                f"the lattice of moves through this start has {size:,} points (move={m}, dims={self.dims}), "
+                f"more than the {MAX_LATTICE:,} searched; use a larger move or fewer dims"
+            )
+        source = int(np.ravel_multi_index(tuple(below), tuple(counts)))
+        dist, goal = lattice_distances(origin, counts, source, m, self._slabs, self._goal_low)
+        points = np.empty(self.dims, dtype=object)
+        points[:] = [origin[k] + m * np.arange(counts[k]) for k in range(self.dims)]
+        return dist.reshape(tuple(counts)), points, goal.reshape(tuple(counts))
+
+    def _fixed_start(self) -> np.ndarray:
+        """The fixed start, ``(move / 2, ..., move / 2)``."""
+        return np.full(self.dims, self.move / 2)
 
     def _random_points(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``n`` points uniform in the cube outside the goal (drawn again while in the goal)."""
