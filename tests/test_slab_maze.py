@@ -259,21 +259,27 @@ def test_a_seed_gives_one_maze_and_slabs_states_it_again():
     assert [s[0] for s in a.slabs] == [0, 0, 1, 1, 2, 3]  # slab j across axis j % d, sorted
 
 
-def lattice_reaches_goal(env: SlabMaze, start) -> bool:
-    """A breadth-first search through ``step`` over the lattice of moves from ``start``."""
-    seen, todo = {tuple(np.round(start, 9))}, deque([np.asarray(start)])
+def search_through_step(env: SlabMaze, start) -> tuple[dict[tuple[float, ...], int], bool]:
+    """Least moves from ``start`` to every lattice point, by a breadth-first search through ``step`` (a walk
+    ends where ``step`` terminates, in the goal), and whether some walk reached the goal."""
+    dist, todo, reached = {tuple(np.round(start, 9)): 0}, deque([np.asarray(start, dtype=np.float64)]), False
     while todo:
         p = todo.popleft()
         for a in range(env.action_space.n):
             env.reset(options={"start": p})
             _, _, terminated, _, _ = env.step(a)
-            if terminated:
-                return True
+            reached |= terminated
             key = tuple(np.round(env.position, 9))
-            if key not in seen:
-                seen.add(key)
-                todo.append(env.position)
-    return False
+            if key not in dist:
+                dist[key] = dist[tuple(np.round(p, 9))] + 1
+                if not terminated:
+                    todo.append(env.position)
+    return dist, reached
+
+
+def lattice_reaches_goal(env: SlabMaze, start) -> bool:
+    """Whether a walk over the lattice of moves from ``start``, through ``step``, reaches the goal."""
+    return search_through_step(env, start)[1]
 
 
 @pytest.mark.parametrize(("d", "walls"), [(2, 2), (2, 4), (3, 3), (3, 6)])
@@ -355,29 +361,12 @@ def test_walks_end_in_the_goal_so_its_far_corner_is_not_reached():
     assert (dist[:7] >= 0).all() and (dist[:, :7] >= 0).all()
 
 
-def distances_through_step(env: SlabMaze, start) -> dict[tuple[float, ...], int]:
-    """Least moves from ``start`` to every lattice point, by a breadth-first search through ``step`` (a walk
-    ends where ``step`` terminates, in the goal)."""
-    dist, todo = {tuple(np.round(start, 9)): 0}, deque([np.asarray(start, dtype=np.float64)])
-    while todo:
-        p = todo.popleft()
-        for a in range(env.action_space.n):
-            env.reset(options={"start": p})
-            _, _, terminated, _, _ = env.step(a)
-            key = tuple(np.round(env.position, 9))
-            if key not in dist:
-                dist[key] = dist[tuple(np.round(p, 9))] + 1
-                if not terminated:
-                    todo.append(env.position)
-    return dist
-
-
 @pytest.mark.parametrize(("d", "walls", "seed"), [(2, 4, 0), (3, 3, 1), (3, 6, 2)])
 def test_lattice_distances_agree_with_a_search_through_step(d, walls, seed):
     env = SlabMaze(dims=d, walls=walls, layout_seed=seed)
     start = env.start_positions(1, seed=seed)[0]
     dist, points = env.lattice_distances(start)
-    by_step = distances_through_step(env, start)
+    by_step, _ = search_through_step(env, start)
     grid = np.stack(np.meshgrid(*points, indexing="ij"), axis=-1).reshape(-1, d)
     expected = [by_step.get(tuple(np.round(p, 9)), -1) for p in grid]
     np.testing.assert_array_equal(dist.ravel(), expected)

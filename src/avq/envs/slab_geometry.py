@@ -118,18 +118,19 @@ def lattice_distances(
     queue = np.empty(n, dtype=np.int64)
     dist[source], queue[0] = 0, source
     head, tail = 0, 1
-    pos, start = np.empty(d), np.empty(d)
+    pos, start, index = np.empty(d), np.empty(d), np.empty(d, dtype=np.int64)
     while head < tail:
         q = queue[head]
         head += 1
         for k in range(d):
-            start[k] = origin[k] + ((q // stride[k]) % counts[k]) * move
+            index[k] = (q // stride[k]) % counts[k]
+            start[k] = origin[k] + index[k] * move
         if in_goal(start, goal_low):
             goal[q] = True
             continue  # (the walk ends there)
         for a in range(2 * d):
             k, step = a >> 1, 1 - 2 * (a & 1)
-            j = (q // stride[k]) % counts[k] + step
+            j = index[k] + step
             if j < 0 or j >= counts[k]:
                 continue  # (leaves the lattice, which ends within a move of the cube's faces: a collision)
             pos[:] = start
