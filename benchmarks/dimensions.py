@@ -17,10 +17,13 @@ an exponential:
   4,096 (8 tilings of 8^d tiles); ``grid-ps`` has one bin per move on every axis, ``ceil(1 / move)^d`` bins,
   and is skipped (a note printed) where that is more than 2,000,000 (d = 8). SlabMaze has no entry of its own
   in the agents' defaults: ``avq`` is the planning agent with its general ones; ``avq-axis`` is ``avq`` with
-  ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8. With ``--start fixed``
+  ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8; ``avq-known1`` is ``avq``
+  with ``known_after`` 1, as the mazes' entries and ``grid-ps`` have it. With ``--start fixed``
   (parti-game's protocol) every episode starts at the maze's fixed start near the corner ``(0, ..., 0)``, and a
   run reaches when the greedy walk from there ends in the goal: ``OUT/data/dimensions_fixed.csv``, drawn in no
-  figure.
+  figure. With ``--shaped`` every agent's rewards are shaped by a potential, the negative of the goal's distance
+  in moves walls aside (``avq.envs.PotentialShaping``, ``SlabMaze.goal_distance``): the agents are told where the
+  goal is, as parti-game is; ``OUT/data/dimensions_shaped.csv`` or ``dimensions_fixed_shaped.csv``.
 * ``--irrelevant``: MountainCar-v0 and CartPole-v1 with k = 0, 2, 4, 8 noise dimensions appended
   (``avq.envs.IrrelevantDims``), 300 episodes. Every k gets the agent's defaults for the task itself (which
   ``make_agent`` would replace by the general ones on a wrapped task), per-dimension settings extended over
@@ -33,7 +36,10 @@ an exponential:
 moves faces from the fixed start: the goal's distance in moves (``SlabMaze.shortest_steps``), and the lattice
 points nearer than that distance less the goal's reward (``SlabMaze.lattice_distances``). With untried decisions
 worth 0 and -1 a move, R-max's agent on that lattice (``grid-ps``) values every untried decision there above the
-path to the goal, so it tries them all before it heads for the goal; no learning, a few seconds.
+path to the goal, so it tries them all before it heads for the goal; no learning, a few seconds. The last column: the
+points whose moves from the start plus the goal's distance walls aside (``SlabMaze.goal_distance``) are at most
+that distance; an explorer told the goal's distance (``--shaped``) values untried decisions by that sum, as A*
+does, and may try the decisions of those points before it reaches the goal, no others.
 
 ``--agents dqn`` adds Stable-Baselines3's DQN with RL Baselines3 Zoo's hyper-parameters (:data:`ZOO_DQN`),
 imported only then (``pip install stable-baselines3 torch``; not an extra of avq). Its cells are the
@@ -44,6 +50,7 @@ Q-network's parameters. Rows of agents not run are kept from the CSV, so that an
     python benchmarks/dimensions.py --plot                      # docs/figures/dimensions*.png, the fits
     python benchmarks/dimensions.py --dims --agents dqn         # add DQN's rows
     python benchmarks/dimensions.py --dims --start fixed        # docs/data/dimensions_fixed.csv
+    python benchmarks/dimensions.py --dims --start fixed --shaped --budget 1000000   # dimensions_fixed_shaped.csv
     python benchmarks/dimensions.py --lattice                   # the explorer's task at each d: a table
     python benchmarks/dimensions.py --quick --dims --irrelevant --plot --jobs 1 --out /tmp/dims   # a check
 """
@@ -62,7 +69,7 @@ from joblib import Parallel, delayed
 
 import avq
 from avq.agents.registry import agent_defaults
-from avq.envs import IrrelevantDims, SlabMaze
+from avq.envs import IrrelevantDims, PotentialShaping, SlabMaze
 from avq.envs.grid_maze import GOAL_REWARD, MOVE_REWARD
 from avq.envs.slab_geometry import slab_move
 from avq.envs.slab_maze import MAX_LATTICE
@@ -76,8 +83,11 @@ DIMS_AGENTS = {"avq": UNCAPPED, "avq-sarsa": UNCAPPED, "tiles": {"iht_size": 1 <
 #: ``avq`` with the cuts across one axis instead of the paper's growth on collisions (not its defaults: on classic
 #: control the outcome split across one axis costs; docs/results/dimensions.md).
 DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_cut": True, "axis_share": 0.8}
+#: ``avq`` with a decision known after one try, as the mazes' entries and ``grid-ps`` have it (a maze's moves have
+#: one outcome each; on classic control it did not hold up: docs/results/dimensions.md#more-probes).
+DIMS_AGENTS["avq-known1"] = {**UNCAPPED, "known_after": 1}
 #: The registered agent of each variant that is not one itself.
-REGISTERED = {"avq-axis": "avq"}
+REGISTERED = {"avq-axis": "avq", "avq-known1": "avq"}
 IRRELEVANT_AGENTS = ("avq", "avq-sarsa", "tiles")
 TASKS = ("MountainCar-v0", "CartPole-v1")
 #: CartPole's velocities are unbounded; tiles cuts a box (benchmarks/compare.py's).
@@ -231,10 +241,14 @@ def grid_bins(d: int) -> int:
     return math.ceil(1.0 / MOVE - 1e-9) ** d
 
 
-def dims_run(name: str, d: int, seed: int, budget: int, start: str = "random") -> dict:
+def dims_run(name: str, d: int, seed: int, budget: int, start: str = "random", shaped: bool = False) -> dict:
+    """One agent on the slab maze of dimension ``d``; with ``shaped``, its rewards shaped by the negative of the
+    goal's distance in moves (:class:`avq.envs.PotentialShaping`, ``SlabMaze.goal_distance``)."""
     t0 = time.perf_counter()
     env = gym.make("avq/SlabMaze-v0", dims=d, move=MOVE, layout_seed=d, start=start)
     maze = env.unwrapped
+    if shaped:
+        env = PotentialShaping(env, lambda obs: -maze.goal_distance(obs))
     if name == "dqn":
         agent = ZooDQN(env, "avq/SlabMaze-v0", seed, budget)
     else:
@@ -516,17 +530,27 @@ def plot(out: Path) -> None:
 
 
 def lattice_table(ds: list[int]) -> None:
-    """The lattice of moves through the fixed start at each d: the goal's distance, and the points nearer."""
-    print("| d | lattice points | moves to the goal, D (without slabs) | points fewer than D - 11 moves away |")
-    print("|---|---|---|---|")
+    """The lattice of moves through the fixed start at each d: the goal's distance, the points nearer, and the
+    points an explorer told the goal's distance may try before it reaches the goal."""
+    print(
+        "| d | lattice points | moves to the goal, D (without slabs) | points fewer than D - 11 moves away "
+        "| told the goal's distance h: points with moves + h <= D |"
+    )
+    print("|---|---|---|---|---|")
     for d in ds:
         maze = SlabMaze(dims=d, move=MOVE, layout_seed=d, start="fixed")
-        dist, _ = maze.lattice_distances()
+        dist, points = maze.lattice_distances()
         steps = maze.shortest_steps()
         free = SlabMaze(dims=d, walls=[], move=MOVE, start="fixed").shortest_steps()
         path = (steps - 1) * MOVE_REWARD + GOAL_REWARD  # (the path's return; an untried decision is worth 0)
         near = int(((dist >= 0) & (dist * MOVE_REWARD > path)).sum())
-        print(f"| {d} | {dist.size:,} | {steps} ({free}) | {near:,} ({near / dist.size:.0%}) |")
+        grid = np.stack(np.meshgrid(*points, indexing="ij"), axis=-1).reshape(-1, d)
+        h = np.asarray(maze.goal_distance(grid)).reshape(dist.shape)
+        ahead = int(((dist >= 0) & (dist + h <= steps)).sum())
+        print(
+            f"| {d} | {dist.size:,} | {steps} ({free}) | {near:,} ({near / dist.size:.0%}) "
+            f"| {ahead:,} ({ahead / dist.size:.0%}) |"
+        )
 
 
 def seeds_of(text: str) -> list[int]:
@@ -549,6 +573,7 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=None, help="--irrelevant: episodes a run (300; --quick 60)")
     ap.add_argument("--kind", choices=("noise", "walk"), default="noise", help="--irrelevant: IrrelevantDims' kind")
     ap.add_argument("--start", choices=("random", "fixed"), default="random", help="--dims: SlabMaze's start")
+    ap.add_argument("--shaped", action="store_true", help="--dims: rewards shaped by the goal's distance")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs", help="CSVs in OUT/data, figures in OUT/figures (default docs)")
     args = ap.parse_args()
@@ -573,14 +598,16 @@ def main() -> None:
             for name, d in [(n, d) for n in names for d in ds if n == "grid-ps" and grid_bins(d) > MAX_BINS]:
                 print(f"note: {name} skipped at d = {d}: {grid_bins(d):.0e} bins (one per move a dimension)")
             jobs = [
-                delayed(dims_run)(n, d, s, budget, args.start)
+                delayed(dims_run)(n, d, s, budget, args.start, args.shaped)
                 for d in ds
                 for n in names
                 for s in seeds
                 if n != "grid-ps" or grid_bins(d) <= MAX_BINS
             ]
-            print(f"{len(jobs)} runs: SlabMaze d {ds}, seeds {seeds}, budget {budget:,} env steps")
-            csv_name = "dimensions.csv" if args.start == "random" else "dimensions_fixed.csv"
+            what = "SlabMaze" + (" shaped by the goal's distance" if args.shaped else "")
+            print(f"{len(jobs)} runs: {what} d {ds}, seeds {seeds}, budget {budget:,} env steps")
+            csv_name = "dimensions" + ("_fixed" if args.start == "fixed" else "") + ("_shaped" if args.shaped else "")
+            csv_name += ".csv"
             rows = write_csv(out / "data" / csv_name, DIMS_FIELDS, finished(args.jobs, jobs), ("agent", "d"))
             dims_table(rows, "90%" if args.start == "random" else "the goal")
         else:

@@ -29,12 +29,14 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.wrappers import RecordEpisodeStatistics
 from joblib import Parallel, delayed
 
 sys.path.insert(0, str(Path(__file__).parent))
 from dimensions import CARTPOLE_BOUNDS, seeds_of, write_csv  # noqa: E402
 
 import avq  # noqa: E402
+from avq.envs import PotentialShaping  # noqa: E402
 
 #: Episodes per run and the ``v_opt`` values measured on each task.
 TASKS = {
@@ -53,36 +55,17 @@ FIELDS = ("task", "agent", "v_opt", "seed", "episodes", "final_return", "cells",
 AXIS_FIELDS = (*FIELDS, "axis_share")
 
 
-class ShapedMountainCar(gym.Wrapper):
-    """MountainCar-v0 with potential-based shaping: reward + phi(s') - phi(s), phi 100 times the car's height
-    (0 once the episode ends), so rewards take both signs and the best policy is the same. ``returns``: each
+def shaped_mountain_car(episodes: int) -> tuple[gym.Env, RecordEpisodeStatistics]:
+    """MountainCar-v0 with potential-based shaping (:class:`avq.envs.PotentialShaping`): phi 100 times the car's
+    height, so rewards take both signs and the best policy is the same; and, inside it, the recorder of each
     episode's return unshaped (what the final return reports)."""
-
-    def __init__(self) -> None:
-        super().__init__(gym.make("MountainCar-v0"))
-        self.returns: list[float] = []
-
-    @staticmethod
-    def _phi(obs) -> float:
-        return 100.0 * (0.45 * np.sin(3.0 * obs[0]) + 0.55)
-
-    def reset(self, **kwargs):
-        obs, info = self.env.reset(**kwargs)
-        self._phi_s, self._true = self._phi(obs), 0.0
-        return obs, info
-
-    def step(self, action):
-        obs, r, terminated, truncated, info = self.env.step(action)
-        phi = 0.0 if terminated else self._phi(obs)
-        shaped, self._phi_s, self._true = float(r) + phi - self._phi_s, phi, self._true + float(r)
-        if terminated or truncated:
-            self.returns.append(self._true)
-        return obs, shaped, terminated, truncated, info
+    unshaped = RecordEpisodeStatistics(gym.make("MountainCar-v0"), buffer_length=episodes)
+    return PotentialShaping(unshaped, lambda obs: 100.0 * (0.45 * np.sin(3.0 * obs[0]) + 0.55)), unshaped
 
 
 def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int, axis_share: float | None = None) -> dict:
     """One run: ``avq`` (the general entry) with ``v_opt`` (and ``axis_share`` where given), ``tiles`` or ``random``."""
-    env = ShapedMountainCar() if task == "MountainCar-shaped" else gym.make(task)
+    env, unshaped = shaped_mountain_car(episodes) if task == "MountainCar-shaped" else (gym.make(task), None)
     t = time.perf_counter()
     if agent == "random":
         env.action_space.seed(seed)
@@ -93,7 +76,7 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int, axi
             while not done:
                 _, r, term, trunc, _ = env.step(env.action_space.sample())
                 total, done, steps = total + float(r), term or trunc, steps + 1
-            returns.append(env.returns[-1] if isinstance(env, ShapedMountainCar) else total)
+            returns.append(unshaped.return_queue[-1] if unshaped is not None else total)
         cells, v_end = 0, None
     else:
         if agent == "avq":
@@ -106,7 +89,7 @@ def run(task: str, agent: str, v_opt: str | float, seed: int, episodes: int, axi
             )
         model.learn(total_episodes=episodes)
         returns, steps, cells = model.episode_history()["return"], model.num_timesteps, model.n_cells
-        returns = env.returns if isinstance(env, ShapedMountainCar) else returns
+        returns = list(unshaped.return_queue) if unshaped is not None else returns
         v_end = round(model.v_opt_, 1) if agent == "avq" else None
     row = dict(
         task=task,

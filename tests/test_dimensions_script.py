@@ -16,11 +16,21 @@ def test_lattice_prints_the_goals_distance_and_the_points_whose_untried_decision
     assert out.returncode == 0, out.stderr
     for d in (2, 3):
         maze = SlabMaze(dims=d, layout_seed=d, start="fixed")
-        dist, _ = maze.lattice_distances()
+        dist, pts = maze.lattice_distances()
         steps = maze.shortest_steps()
         # The path: steps - 1 moves at -1, then +10. An untried decision k moves away: k moves at -1, then 0.
         near = sum(1 for k in dist.ravel() if k >= 0 and -k > -(steps - 1) + 10)
-        row = f"| {d} | {10**d:,} | {steps} ({9 * d}) | {near:,} ({near / 10**d:.0%}) |"
+        # Told the goal's distance: moves from the start plus distance to the goal (0.9 less each coordinate,
+        # over 0.1), at most the goal's moves.
+        ahead = sum(
+            1
+            for idx in np.ndindex(dist.shape)
+            if dist[idx] >= 0
+            and dist[idx] + sum(max(0.0, 0.9 - pts[k][i]) / 0.1 for k, i in enumerate(idx)) <= steps + 1e-9
+        )
+        row = (
+            f"| {d} | {10**d:,} | {steps} ({9 * d}) | {near:,} ({near / 10**d:.0%}) | {ahead:,} ({ahead / 10**d:.0%}) |"
+        )
         assert row in out.stdout.splitlines()
         assert np.all(dist >= 0)  # (a drawn maze leads everywhere; the goal is one lattice point, reached from outside)
 
@@ -28,3 +38,24 @@ def test_lattice_prints_the_goals_distance_and_the_points_whose_untried_decision
 def test_lattice_beyond_its_limit_is_refused_with_the_fix():
     out = subprocess.run([sys.executable, str(SCRIPT), "--lattice", "--d", "8"], capture_output=True, text=True)
     assert out.returncode == 2 and "d = [8] has more than 2,000,000 lattice points; give d up to 6" in out.stderr
+
+
+def run_dims(out: Path, *extra: str) -> list[str]:
+    """The avq row of ``--dims`` at d = 2 from the fixed start, seed 0, 5,000 env steps, as CSV fields."""
+    args = ["--dims", "--start", "fixed", "--agents", "avq", "--d", "2", "--seeds", "0-0", "--budget", "5000"]
+    done = subprocess.run(
+        [sys.executable, str(SCRIPT), *args, *extra, "--jobs", "1", "--out", str(out)], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    (csv,) = (out / "data").iterdir()
+    return [csv.name, done.stdout, *csv.read_text().splitlines()[1].split(",")]
+
+
+def test_shaped_runs_tell_the_agent_the_goals_distance_and_write_their_own_csv(tmp_path):
+    name, stdout, *shaped = run_dims(tmp_path / "shaped", "--shaped")
+    assert name == "dimensions_fixed_shaped.csv"
+    assert "1 runs: SlabMaze shaped by the goal's distance d [2], seeds [0]" in stdout
+    assert shaped[:2] == ["avq", "2"] and shaped[4] == "True"
+    name, _, *plain = run_dims(tmp_path / "plain")
+    assert name == "dimensions_fixed.csv" and plain[4] == "True"
+    assert int(shaped[5]) < int(plain[5])  # (env steps to the goal: the same seed, told where the goal is)

@@ -17,6 +17,7 @@ from avq.envs.grid_maze import GridMaze
 from avq.envs.irrelevant import IrrelevantDims
 from avq.envs.layouts import MAPS, Layout, load_layout, parse_layout, random_layout, refine_layout
 from avq.envs.robot_maze import RobotMaze
+from avq.envs.shaping import PotentialShaping
 from avq.envs.slab_maze import SlabMaze
 
 __all__ = [
@@ -25,6 +26,7 @@ __all__ = [
     "RobotMaze",
     "SlabMaze",
     "IrrelevantDims",
+    "PotentialShaping",
     "MAPS",
     "Layout",
     "load_layout",

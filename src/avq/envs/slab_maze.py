@@ -261,6 +261,28 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         ``reset(options={"start": point})``."""
         return self._random_points(np.random.default_rng(check_int("seed", seed, 0)), check_int("n", n, 0))
 
+    def goal_distance(self, points: Any) -> np.ndarray | float:
+        """How far each point is from the goal in moves, walls aside: the sum over the axes of how far the point is
+        below the goal's lower face, over ``move``, rounded to a millionth of a move. ``points``: one point ``(d,)``
+        (a float back) or ``(n, d)`` (``n`` floats back). 0 in the goal; never more than the moves a walk needs, so
+        ``-goal_distance`` is a potential that tells an agent where the goal is (:class:`~avq.envs.PotentialShaping`).
+        The rounding makes a move on the lattice of whole moves through a start such as the fixed one change it by
+        exactly one move (or none) from the float32 observations too, so that shaped rewards keep the ties an
+        explorer's planned values have without it, where rounding noise would break them at random
+        (docs/results/dimensions.md#shaped).
+
+        Raises:
+            ValueError: ``points`` is not ``d`` numbers or rows of ``d`` numbers.
+        """
+        try:
+            x = np.asarray(points, dtype=np.float64)
+        except (TypeError, ValueError):
+            x = np.empty(0)
+        if x.ndim not in (1, 2) or x.shape[-1] != self.dims:
+            raise ValueError(f"points must be {self.dims} numbers or an (n, {self.dims}) array of them, not {points!r}")
+        moves = np.round(np.maximum(0.0, self._goal_low - x).sum(axis=-1) / self.move, 6)
+        return float(moves) if x.ndim == 1 else moves
+
     def lattice_distances(self, start: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """Least moves from ``start`` to every point of the lattice of moves through it, slip aside.
 
