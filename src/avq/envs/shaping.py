@@ -34,8 +34,10 @@ class PotentialShaping(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruc
         gamma: The discount the shaping assumes, in (0, 1]: the agent's own ``gamma`` for the optimal policies
             to stay the same (1 for avq's planning agent).
 
-    ``info["unshaped_reward"]`` holds the task's own reward at every step; to record the task's returns, wrap
-    the task in ``gymnasium.wrappers.RecordEpisodeStatistics`` before shaping it.
+    ``info["unshaped_reward"]`` holds the task's own reward at every step (the innermost shaping's, where shapings
+    are stacked); to record the task's returns, wrap the task in ``gymnasium.wrappers.RecordEpisodeStatistics``
+    before shaping it. The potential is recorded in the env's spec as given, so a spec with a lambda does not
+    serialise to JSON, as with Gymnasium's own wrappers that take functions.
 
     Raises:
         TypeError: ``potential`` is not callable.
@@ -68,15 +70,13 @@ class PotentialShaping(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruc
         phi = 0.0 if terminated else self._potential_of(obs)
         shaped = float(reward) + self.gamma * phi - self._phi
         self._phi = phi
-        return obs, shaped, terminated, truncated, {**info, "unshaped_reward": float(reward)}
+        return obs, shaped, terminated, truncated, {"unshaped_reward": float(reward), **info}  # (the innermost)
 
     def _potential_of(self, obs: Any) -> float:
         value = self.potential(obs)
-        try:
-            phi = float(value)
-        except (TypeError, ValueError):
-            phi = math.nan
-        if not math.isfinite(phi) or isinstance(value, (bool, np.bool_)):
+        real = np.ndim(value) == 0 and isinstance(value, (int, float, np.integer, np.floating))
+        phi = float(value) if real and not isinstance(value, (bool, np.bool_)) else math.nan
+        if not math.isfinite(phi):
             raise ValueError(
                 f"potential({np.asarray(obs).tolist()!r}) returned {value!r}, not a finite number; "
                 "make the potential return a finite number for every observation"

@@ -266,10 +266,11 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         below the goal's lower face, over ``move``, rounded to a millionth of a move. ``points``: one point ``(d,)``
         (a float back) or ``(n, d)`` (``n`` floats back). 0 in the goal; never more than the moves a walk needs, so
         ``-goal_distance`` is a potential that tells an agent where the goal is (:class:`~avq.envs.PotentialShaping`).
-        The rounding makes a move on the lattice of whole moves through a start such as the fixed one change it by
-        exactly one move (or none) from the float32 observations too, so that shaped rewards keep the ties an
-        explorer's planned values have without it, where rounding noise would break them at random
-        (docs/results/dimensions.md#shaped).
+        The rounding makes most moves on the lattice of whole moves through a start such as the fixed one change it
+        by exactly one move (or none, or half of one across the goal's face) from the float32 observations too, so
+        that shaped rewards keep most of the ties an explorer's planned values have without it, where rounding noise
+        would break them at random (docs/results/dimensions.md#shaped); as the sum is rounded, not each axis, some
+        moves from d = 4 on change it by one move and a millionth.
 
         Raises:
             ValueError: ``points`` is not ``d`` numbers or rows of ``d`` numbers.
@@ -279,7 +280,10 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         except (TypeError, ValueError):
             x = np.empty(0)
         if x.ndim not in (1, 2) or x.shape[-1] != self.dims:
-            raise ValueError(f"points must be {self.dims} numbers or an (n, {self.dims}) array of them, not {points!r}")
+            raise ValueError(
+                f"points must be {self.dims} numbers or an (n, {self.dims}) array of them, not {points!r}; "
+                "give one point of the cube or rows of points"
+            )
         moves = np.round(np.maximum(0.0, self._goal_low - x).sum(axis=-1) / self.move, 6)
         return float(moves) if x.ndim == 1 else moves
 
