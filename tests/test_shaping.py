@@ -35,7 +35,7 @@ def test_goal_distance_counts_the_moves_below_the_goals_face():
     np.testing.assert_allclose(rows, [0.5, 2.0 + 1.0 + 7.5])
 
 
-def test_goal_distance_changes_by_exactly_one_move_along_the_lattice_from_float32_observations():
+def test_goal_distance_rounds_away_float32_noise_on_a_walk_from_the_fixed_start():
     maze = SlabMaze(6, walls=[], start="fixed")
     obs, _ = maze.reset(seed=0)
     assert obs.dtype == np.float32 and maze.goal_distance(obs) == 51.0  # (8.5 moves below 0.9 on each axis)
