@@ -38,8 +38,9 @@ points nearer than that distance less the goal's reward (``SlabMaze.lattice_dist
 worth 0 and -1 a move, R-max's agent on that lattice (``grid-ps``) values every untried decision there above the
 path to the goal, so it tries them all before it heads for the goal; no learning, a few seconds. The last column: the
 points whose moves from the start plus the goal's distance walls aside (``SlabMaze.goal_distance``) are at most
-that distance; an explorer told the goal's distance (``--shaped``) values untried decisions by that sum, as A*
-does, and may try the decisions of those points before it reaches the goal, no others.
+that distance, the only points A* would expand before it reaches the goal; an explorer told the goal's distance
+(``--shaped``) ranks untried decisions by that sum, as A* does, though one that plans from where it stands may
+stray beyond them.
 
 ``--agents dqn`` adds Stable-Baselines3's DQN with RL Baselines3 Zoo's hyper-parameters (:data:`ZOO_DQN`),
 imported only then (``pip install stable-baselines3 torch``; not an extra of avq). Its cells are the
