@@ -45,6 +45,22 @@ def test_goal_distance_rounds_away_float32_noise_on_a_walk_from_the_fixed_start(
         obs = after
 
 
+@pytest.mark.parametrize("dims", [4, 6, 8])
+def test_every_lattice_move_changes_the_goal_distance_by_whole_or_half_moves_exactly(dims):
+    # A long random walk through the lattice from the fixed start, in the float32 observations: each axis is
+    # rounded, so no move changes the distance by a whole move and a millionth (rounding the sum did, from d = 4).
+    maze = SlabMaze(dims, walls=[], start="fixed", max_steps=100_000)
+    obs, _ = maze.reset(seed=0)
+    changes = set()
+    for a in np.random.default_rng(dims).integers(0, 2 * dims, size=3_000):
+        after, _, terminated, *_ = maze.step(int(a))
+        changes.add(float(maze.goal_distance(obs) - maze.goal_distance(after)))
+        obs = after
+        if terminated:
+            obs, _ = maze.reset()
+    assert changes <= {-1.0, -0.5, 0.0, 0.5, 1.0} and {-1.0, 1.0} <= changes
+
+
 def test_goal_distance_is_no_more_than_a_walks_moves():
     maze = SlabMaze(2, walls=WALL, move=0.1, goal_size=0.1, start="fixed")
     start = np.array([0.05, 0.05])

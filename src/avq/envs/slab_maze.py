@@ -263,14 +263,13 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
 
     def goal_distance(self, points: Any) -> np.ndarray | float:
         """How far each point is from the goal in moves, walls aside: the sum over the axes of how far the point is
-        below the goal's lower face, over ``move``, rounded to a millionth of a move. ``points``: one point ``(d,)``
-        (a float back) or ``(n, d)`` (``n`` floats back). 0 in the goal; never more than the moves a walk needs, so
-        ``-goal_distance`` is a potential that tells an agent where the goal is (:class:`~avq.envs.PotentialShaping`).
-        The rounding makes most moves on the lattice of whole moves through a start such as the fixed one change it
-        by exactly one move (or none, or half of one across the goal's face) from the float32 observations too, so
-        that shaped rewards keep most of the ties an explorer's planned values have without it, where rounding noise
-        would break them at random (docs/results/dimensions.md#shaped); as the sum is rounded, not each axis, some
-        moves from d = 4 on change it by one move and a millionth.
+        below the goal's lower face, over ``move``, each axis rounded to a millionth of a move. ``points``: one point
+        ``(d,)`` (a float back) or ``(n, d)`` (``n`` floats back). 0 in the goal; never more than the moves a walk
+        needs, so ``-goal_distance`` is a potential that tells an agent where the goal is
+        (:class:`~avq.envs.PotentialShaping`). The rounding makes every move on the lattice of whole moves through
+        a start such as the fixed one change it by exactly one move (or none, or half of one across the goal's face)
+        from the float32 observations too, so that shaped rewards keep the ties an explorer's planned values have
+        without it, where rounding noise would break them at random (docs/results/dimensions.md#shaped).
 
         Raises:
             ValueError: ``points`` is not ``d`` numbers or rows of ``d`` numbers.
@@ -284,7 +283,7 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
                 f"points must be {self.dims} numbers or an (n, {self.dims}) array of them, not {points!r}; "
                 "give one point of the cube or rows of points"
             )
-        moves = np.round(np.maximum(0.0, self._goal_low - x).sum(axis=-1) / self.move, 6)
+        moves = np.round(np.maximum(0.0, self._goal_low - x) / self.move, 6).sum(axis=-1)
         return float(moves) if x.ndim == 1 else moves
 
     def lattice_distances(self, start: Any = None) -> tuple[np.ndarray, np.ndarray]:
