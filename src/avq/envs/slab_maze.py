@@ -266,9 +266,9 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         below the goal's lower face, over ``move``, each axis rounded to a millionth of a move. ``points``: one point
         ``(d,)`` (a float back) or ``(n, d)`` (``n`` floats back). 0 in the goal; never more than the moves a walk
         needs, so ``-goal_distance`` is a potential that tells an agent where the goal is
-        (:class:`~avq.envs.PotentialShaping`). The rounding makes every move on the lattice of whole moves through
-        a start such as the fixed one change it by exactly one move (or none, or half of one across the goal's face)
-        from the float32 observations too, so that shaped rewards keep the ties an explorer's planned values have
+        (:class:`~avq.envs.PotentialShaping`). With the default move (0.1) the rounding makes every move on the
+        lattice of whole moves through a start such as the fixed one change it by exactly one move (or none, or half
+        of one across the goal's face) from the float32 observations too, so that shaped rewards keep the ties an explorer's planned values have
         without it, where rounding noise would break them at random (docs/results/dimensions.md#shaped).
 
         Raises:
