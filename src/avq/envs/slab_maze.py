@@ -268,8 +268,9 @@ class SlabMaze(gym.Env[np.ndarray, np.int64]):
         needs, so ``-goal_distance`` is a potential that tells an agent where the goal is
         (:class:`~avq.envs.PotentialShaping`). With the default move (0.1) the rounding makes every move on the
         lattice of whole moves through a start such as the fixed one change it by exactly one move (or none, or half
-        of one across the goal's face) from the float32 observations too, so that shaped rewards keep the ties an explorer's planned values have
-        without it, where rounding noise would break them at random (docs/results/dimensions.md#shaped).
+        of one across the goal's face) from the float32 observations too, so that shaped rewards keep the ties an
+        explorer's planned values have without it, where rounding noise would break them at random
+        (docs/results/dimensions.md#shaped).
 
         Raises:
             ValueError: ``points`` is not ``d`` numbers or rows of ``d`` numbers.
