@@ -18,7 +18,8 @@ an exponential:
   and is skipped (a note printed) where that is more than 2,000,000 (d = 8). SlabMaze has no entry of its own
   in the agents' defaults: ``avq`` is the planning agent with its general ones; ``avq-axis`` is ``avq`` with
   ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8; ``avq-known1`` is ``avq``
-  with ``known_after`` 1, as the mazes' entries and ``grid-ps`` have it. With ``--start fixed``
+  with ``known_after`` 1, as the mazes' entries and ``grid-ps`` have it; ``avq-goal10`` is ``avq`` with ``v_opt``
+  10, the goal's reward, as they have it too. With ``--start fixed``
   (parti-game's protocol) every episode starts at the maze's fixed start near the corner ``(0, ..., 0)``, and a
   run reaches when the greedy walk from there ends in the goal: ``OUT/data/dimensions_fixed.csv``, drawn in no
   figure. With ``--shaped`` every agent's rewards are shaped by a potential, the negative of the goal's distance
@@ -87,8 +88,11 @@ DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_cut
 #: ``avq`` with a decision known after one try, as the mazes' entries and ``grid-ps`` have it (a maze's moves have
 #: one outcome each; on classic control it did not hold up: docs/results/dimensions.md#more-probes).
 DIMS_AGENTS["avq-known1"] = {**UNCAPPED, "known_after": 1}
+#: ``avq`` with an untried decision worth the goal's reward (10), as the mazes' entries and ``grid-ps`` have it:
+#: R-max's bound where that reward is collected once an episode; ``v_opt`` "auto" is 0 on rewards of both signs.
+DIMS_AGENTS["avq-goal10"] = {**UNCAPPED, "v_opt": 10.0}
 #: The registered agent of each variant that is not one itself.
-REGISTERED = {"avq-axis": "avq", "avq-known1": "avq"}
+REGISTERED = {"avq-axis": "avq", "avq-known1": "avq", "avq-goal10": "avq"}
 IRRELEVANT_AGENTS = ("avq", "avq-sarsa", "tiles")
 TASKS = ("MountainCar-v0", "CartPole-v1")
 #: CartPole's velocities are unbounded; tiles cuts a box (benchmarks/compare.py's).
