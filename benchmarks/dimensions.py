@@ -89,10 +89,14 @@ DIMS_AGENTS["avq-axis"] = {**UNCAPPED, "collision_growth": False, "collision_cut
 #: one outcome each; on classic control it did not hold up: docs/results/dimensions.md#more-probes).
 DIMS_AGENTS["avq-known1"] = {**UNCAPPED, "known_after": 1}
 #: ``avq`` with an untried decision worth the goal's reward (10), as the mazes' entries and ``grid-ps`` have it:
-#: R-max's bound where that reward is collected once an episode; ``v_opt`` "auto" is 0 on rewards of both signs.
+#: R-max's bound on the untold maze, where that reward comes once an episode. ``v_opt`` "auto" is 0 once a reward
+#: below 0 has been seen (here from the first move); a fixed ``v_opt`` also drops "auto"'s ceiling on planned values.
 DIMS_AGENTS["avq-goal10"] = {**UNCAPPED, "v_opt": 10.0}
 #: The registered agent of each variant that is not one itself.
 REGISTERED = {"avq-axis": "avq", "avq-known1": "avq", "avq-goal10": "avq"}
+#: ``--dims``' agents when ``--agents`` is not given: the study's (the first section's CSV and figure); the other
+#: variants of :data:`DIMS_AGENTS` run when named.
+DIMS_STUDY = ("avq", "avq-sarsa", "tiles", "grid-ps", "avq-axis")
 IRRELEVANT_AGENTS = ("avq", "avq-sarsa", "tiles")
 TASKS = ("MountainCar-v0", "CartPole-v1")
 #: CartPole's velocities are unbounded; tiles cuts a box (benchmarks/compare.py's).
@@ -588,12 +592,15 @@ def main() -> None:
     if args.quick and out.resolve() == (Path(__file__).resolve().parents[1] / "docs"):
         ap.error("--quick is a check: write it elsewhere than docs (e.g. --out /tmp/dims)")
     seeds = seeds_of(args.seeds or ("0-1" if args.quick else "0-4"))
-    for study, default in (("dims", DIMS_AGENTS), ("irrelevant", IRRELEVANT_AGENTS)):
+    for study, default, known in (
+        ("dims", DIMS_STUDY, DIMS_AGENTS),
+        ("irrelevant", IRRELEVANT_AGENTS, IRRELEVANT_AGENTS),
+    ):
         if not getattr(args, study):
             continue
         names = args.agents.split(",") if args.agents else list(default)
-        if unknown := [n for n in names if n not in (*default, "dqn")]:
-            ap.error(f"--agents {','.join(unknown)}: choose from {', '.join(default)}, dqn")
+        if unknown := [n for n in names if n not in (*known, "dqn")]:
+            ap.error(f"--agents {','.join(unknown)}: choose from {', '.join(known)}, dqn")
         if "dqn" in names:
             require_sb3()
         t0 = time.perf_counter()

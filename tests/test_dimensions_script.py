@@ -59,3 +59,18 @@ def test_shaped_runs_tell_the_agent_the_goals_distance_and_write_their_own_csv(t
     name, _, *plain = run_dims(tmp_path / "plain")
     assert name == "dimensions_fixed.csv" and plain[4] == "True"
     assert int(shaped[5]) < int(plain[5])  # (env steps to the goal: the same seed, told where the goal is)
+
+
+def test_dims_without_agents_runs_the_studys_and_names_every_variant_when_one_is_unknown(tmp_path):
+    args = ["--dims", "--start", "fixed", "--d", "2", "--seeds", "0-0", "--budget", "200", "--jobs", "1"]
+    done = subprocess.run([sys.executable, str(SCRIPT), *args, "--out", str(tmp_path)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    rows = (tmp_path / "data" / "dimensions_fixed.csv").read_text().splitlines()[1:]
+    # The first section's agents only: the variants (avq-known1, avq-goal10) run when named.
+    assert [row.split(",")[0] for row in rows] == ["avq", "avq-sarsa", "tiles", "grid-ps", "avq-axis"]
+    bad = subprocess.run([sys.executable, str(SCRIPT), "--dims", "--agents", "avq-x"], capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert (
+        "--agents avq-x: choose from avq, avq-sarsa, tiles, grid-ps, avq-axis, avq-known1, avq-goal10, dqn"
+        in bad.stderr
+    )
