@@ -19,7 +19,7 @@ an exponential:
   in the agents' defaults: ``avq`` is the planning agent with its general ones; ``avq-axis`` is ``avq`` with
   ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8; ``avq-known1`` is ``avq``
   with ``known_after`` 1, as the mazes' entries and ``grid-ps`` have it; ``avq-goal10`` is ``avq`` with ``v_opt``
-  10, the goal's reward, as they have it too. With ``--start fixed``
+  10, the goal's reward, as they have it too; ``avq-unsettled`` is ``avq`` with ``outcome_split`` "unsettled". With ``--start fixed``
   (parti-game's protocol) every episode starts at the maze's fixed start near the corner ``(0, ..., 0)``, and a
   run reaches when the greedy walk from there ends in the goal: ``OUT/data/dimensions_fixed.csv``, drawn in no
   figure. With ``--shaped`` every agent's rewards are shaped by a potential, the negative of the goal's distance
@@ -92,8 +92,12 @@ DIMS_AGENTS["avq-known1"] = {**UNCAPPED, "known_after": 1}
 #: R-max's bound on the untold maze, where that reward comes once an episode. ``v_opt`` "auto" is 0 once a reward
 #: below 0 has been seen (here from the first move); a fixed ``v_opt`` also drops "auto"'s ceiling on planned values.
 DIMS_AGENTS["avq-goal10"] = {**UNCAPPED, "v_opt": 10.0}
+#: ``avq`` whose outcome split also compares outcomes that end in cells not settled whose values owe nothing to
+#: optimism (``outcome_split`` "unsettled"): beside the goal, where untried decisions are worth 0 and never tried,
+#: cells never settle and the default's split never compares them (docs/results/dimensions.md#unsettled).
+DIMS_AGENTS["avq-unsettled"] = {**UNCAPPED, "outcome_split": "unsettled"}
 #: The registered agent of each variant that is not one itself.
-REGISTERED = {"avq-axis": "avq", "avq-known1": "avq", "avq-goal10": "avq"}
+REGISTERED = {"avq-axis": "avq", "avq-known1": "avq", "avq-goal10": "avq", "avq-unsettled": "avq"}
 #: ``--dims``' agents when ``--agents`` is not given: the study's (the first section's CSV and figure); the other
 #: variants of :data:`DIMS_AGENTS` run when named.
 DIMS_STUDY = ("avq", "avq-sarsa", "tiles", "grid-ps", "avq-axis")

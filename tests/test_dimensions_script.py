@@ -66,11 +66,11 @@ def test_dims_without_agents_runs_the_studys_and_names_every_variant_when_one_is
     done = subprocess.run([sys.executable, str(SCRIPT), *args, "--out", str(tmp_path)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     rows = (tmp_path / "data" / "dimensions_fixed.csv").read_text().splitlines()[1:]
-    # The first section's agents only: the variants (avq-known1, avq-goal10) run when named.
+    # The first section's agents only: the variants (avq-known1, avq-goal10, avq-unsettled) run when named.
     assert [row.split(",")[0] for row in rows] == ["avq", "avq-sarsa", "tiles", "grid-ps", "avq-axis"]
     bad = subprocess.run([sys.executable, str(SCRIPT), "--dims", "--agents", "avq-x"], capture_output=True, text=True)
     assert bad.returncode == 2
     assert (
-        "--agents avq-x: choose from avq, avq-sarsa, tiles, grid-ps, avq-axis, avq-known1, avq-goal10, dqn"
-        in bad.stderr
+        "--agents avq-x: choose from avq, avq-sarsa, tiles, grid-ps, avq-axis, avq-known1, avq-goal10, "
+        "avq-unsettled, dqn" in bad.stderr
     )

@@ -74,8 +74,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             decision that collides at ``x`` in a cell from which it was also seen to leave without a collision
             cuts the cell across one axis, the one on which ``x`` and the mean start of the decision's most
             frequent other successor differ most (scaled); the cell's vector moves along that axis alone to each.
-        outcome_split: Split a cell where a decision's outcomes, valued by the model, disagree by more than
-            ``split_threshold`` beyond what the distance between their starts explains (src/avq/agents/plan/kernels.py).
+        outcome_split: Split a cell where a decision's outcomes disagree by more than ``split_threshold`` beyond what
+            their starts' distance explains (plan/kernels.py); "unsettled": in cells owing nothing to optimism too.
         split_threshold: That excess, > 0.
         axis_share: The outcome split cuts across one axis alone (as ``collision_cut``) where it carries at least
             this share, in [0, 1], of the squared scaled gap between the groups' mean starts; None: their bisector.
@@ -163,7 +163,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         d_min: float = 0.05,
         collision_growth: bool = True,
         collision_cut: bool = False,
-        outcome_split: bool = True,
+        outcome_split: bool | str = True,
         cycle_split: bool = False,
         split_threshold: float = 10.0,
         axis_share: float | None = None,
@@ -195,7 +195,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
                 "collision_growth=True and collision_cut=True are two answers to a collision; give "
                 "collision_growth=False to cut cells across one axis at collisions instead of appending them"
             )
-        self.outcome_split = check_bool("outcome_split", outcome_split)
+        self.outcome_split = check_bool("outcome_split", outcome_split, "unsettled")
         self.cycle_split = check_bool("cycle_split", cycle_split)
         self.split_threshold = check_range(
             "split_threshold", split_threshold, 0.0, np.inf, low_open=True, high_open=True
@@ -239,6 +239,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         held = memory.HELD if self.compose_crossings == "noise" else 0  # (remembered, composed on noise)
         values = dict(
             self.get_params(),
+            outcome_split=2 if self.outcome_split == "unsettled" else int(self.outcome_split),
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
             split_after=0 if self.split_after is None else self.split_after,
             rho=-1.0 if self.rho is None else self.rho,
@@ -307,10 +308,9 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return x
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        # One compiled call per step (core.step); after the first through Numba's dispatcher, later ones call the
-        # compiled function it chose (avq._numba.direct_call), which skips typing the records: the arguments keep
-        # their types (_make_room and Model.reserve keep dtypes and layouts; x a float64 vector, r a float), and
-        # an x that is not a writable C-contiguous array goes through the dispatcher.
+        # One compiled call per step (core.step); after the first through Numba's dispatcher, later ones call the compiled
+        # function it chose (avq._numba.direct_call), skipping the typing of the records, whose types stay (_make_room,
+        # Model.reserve; x a float64 vector, r a float); an x not writable and C-contiguous goes through the dispatcher.
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
         count = None if self._spread.done else self._spread.add  # (during the warm-up, and its log)

@@ -1,5 +1,5 @@
 """``avq-plan``'s decisions: ε-greedy on the planned values, and (``known_radius``) optimism for a decision never
-tried from near here.
+tried from near here; and which cells' values owe nothing to optimism (:func:`owes_no_optimism`).
 
 A cell's pair ``(c, a)`` is known once it has been tried (``known_after``), wherever in the cell that was. In a
 large cell, and above all in one that straddles a wall, a decision's outcome depends on where in the cell it
@@ -17,10 +17,10 @@ import numpy as np
 from numba import njit
 
 from avq.agents._td import epsilon_greedy
-from avq.agents.plan.model import ModelArrays, ModelParam
+from avq.agents.plan.model import ModelArrays, ModelParam, known, settled
 from avq.agents.plan.state import PlanArrays, PlanParam
 
-__all__ = ["decide", "tried_near"]
+__all__ = ["decide", "owes_no_optimism", "tried_near"]
 
 
 @njit(cache=True, inline="always")
@@ -55,3 +55,17 @@ def decide(ag: PlanArrays, m: ModelArrays, src, c: int, x) -> int:
         q = m.Q[c, a]
         row[0, a] = q if q >= v_opt or tried_near(ag, m, c, a, x, radius) else v_opt
     return epsilon_greedy(src, row, 0, epsilon)
+
+
+@njit(cache=True, inline="always")
+def owes_no_optimism(m: ModelArrays, s: int) -> bool:
+    """``V(s)`` owes nothing directly to optimism: ``s`` is :func:`~avq.agents.plan.model.settled`, or a decision
+    it knows is worth at least an untried one (``v_opt``), so that trying the others cannot raise its value. Near
+    a goal worth more than ``v_opt`` a cell may never settle: no untried decision there is worth trying."""
+    if settled(m, s):
+        return True
+    best = -np.inf  # (the best known decision's value)
+    for a in range(m.cnt.shape[1]):
+        if known(m, s, a):
+            best = max(best, m.Q[s, a])
+    return best >= m.MP[ModelParam.V_OPT]

@@ -23,7 +23,9 @@ aggregate transitions into the cells they now lie in when the codebook changes.
   per unit of scaled distance travelled, estimated from the transitions without collisions unless
   ``value_slope`` is given). The cell's squares then disagree about that decision for a reason of
   structure (a wall, a dead end), not of distance: :func:`split_cell` cuts it in two around the two
-  starts. Only outcomes that end in :func:`~avq.agents.plan.model.settled` cells are compared, and only
+  starts. Only outcomes that end in settled cells are compared (``"unsettled"``: or in cells whose values owe
+  nothing to optimism, :func:`~avq.agents.plan.explore.owes_no_optimism`, as near a goal whose way is worth more
+  than ``v_opt``, where cells may never settle), and only
   when the worse one is below the cell's next best decision (the split would change the policy).
 * ``cycle`` (as ``AVQSarsa``'s ``cycle_split``): when two decisions the model knew lead from a cell ``j``
   to another and straight back into ``j``, the square of the return gets a cell of its own.
@@ -41,7 +43,7 @@ import numpy as np
 from numba import njit
 
 from avq.agents.plan import model as _model
-from avq.agents.plan.explore import decide
+from avq.agents.plan.explore import decide, owes_no_optimism
 from avq.agents.plan.memory import record_with_start, relocate, remember, start_after_growth, successor
 from avq.agents.plan.merge import merge_pass, value_slope
 from avq.agents.plan.model import CONT, ModelArrays, known as known_pair, settled
@@ -89,6 +91,8 @@ from avq.rules import (
 
 #: Statuses of :func:`step` (an action, >= 0, while the episode goes on).
 ENDED, NOT_FINITE = -1, -2
+#: ``IP[OUTCOME_SPLIT]`` of ``outcome_split="unsettled"`` (True is 1).
+UNSETTLED = 2
 #: Cells a step may append (a collision and a split).
 APPENDS_PER_STEP = 2
 
@@ -209,18 +213,25 @@ def cut_at_collision(ag: PlanArrays, m: ModelArrays, i: int, a: int, x) -> int:
 
 
 @njit(cache=True, inline="always")
+def compared(m: ModelArrays, s: int, mode: int) -> bool:
+    """Whether the outcome split compares outcomes that end in ``s``: settled, or (``outcome_split`` "unsettled",
+    ``mode`` 2) its value owes nothing to optimism."""
+    return owes_no_optimism(m, s) if mode == UNSETTLED else settled(m, s)
+
+
+@njit(cache=True, inline="always")
 def disagreement(ag: PlanArrays, m: ModelArrays, i: int, a: int, seen: float, slope: float, out) -> float:
-    """The largest excess ``|seen - v_e| - slope * ||xs - c_e||`` over the settled successors ``e`` of
-    ``(i, a)`` (``xs`` the current transition's start, ``v_e`` the mean outcome of the edge, ``c_e`` its
-    mean start, copied into ``out``), and ``-inf`` when there is none. The worse of the two outcomes is
-    ``out``'s last entry."""
+    """The largest excess ``|seen - v_e| - slope * ||xs - c_e||`` over the successors ``e`` of ``(i, a)`` that
+    the split compares (:func:`compared`; ``xs`` the current transition's start, ``v_e`` the mean outcome of the
+    edge, ``c_e`` its mean start, copied into ``out``), and ``-inf`` when there is none. The worse of the two
+    outcomes is ``out``'s last entry."""
     xs, e_xs, inv_scale = ag.xs, ag.e_xs, ag.inv_scale
     n = xs.shape[0]
     worst = -np.inf
     e = m.head[i, a]
     while e >= 0:
         k = m.e_n[e]
-        if k > 0 and settled(m, m.e_to[e]):
+        if k > 0 and compared(m, m.e_to[e], ag.IP[PlanIntParam.OUTCOME_SPLIT]):
             t = m.e_to[e]
             later = m.V[t] if t >= 0 else (m.Q[i, a] if t == CONT else 0.0)  # (CONT: the decision goes on)
             v = (m.e_r[e] + m.e_disc[e] * later) / k
@@ -381,7 +392,7 @@ def end_transition(
         n = x.shape[0]
         other = F[N_F : N_F + n + 1]  # (scratch)
         excess = -np.inf
-        if IP[PlanIntParam.OUTCOME_SPLIT] and known_pair(m, i, a) and settled(m, jm):
+        if IP[PlanIntParam.OUTCOME_SPLIT] and known_pair(m, i, a) and compared(m, jm, IP[PlanIntParam.OUTCOME_SPLIT]):
             seen = F[RET] + (0.0 if terminated else F[DISC] * m.V[j])
             excess = disagreement(ag, m, i, a, seen, value_slope(P, F), other)
         t = S[MEM_POS]
