@@ -74,8 +74,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
             decision that collides at ``x`` in a cell from which it was also seen to leave without a collision
             cuts the cell across one axis, the one on which ``x`` and the mean start of the decision's most
             frequent other successor differ most (scaled); the cell's vector moves along that axis alone to each.
-        outcome_split: Split a cell where a decision's outcomes disagree by more than ``split_threshold`` beyond what
-            their starts' distance explains (plan/kernels.py); "unsettled": in cells owing nothing to optimism too.
+        outcome_split: Split a cell where a decision's outcomes disagree beyond ``split_threshold`` plus what their
+            starts' distance explains, each ending in a settled cell ("unsettled": or in one owing no optimism).
         split_threshold: That excess, > 0.
         axis_share: The outcome split cuts across one axis alone (as ``collision_cut``) where it carries at least
             this share, in [0, 1], of the squared scaled gap between the groups' mean starts; None: their bisector.
@@ -308,8 +308,8 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         return x
 
     def _advance(self, max_steps: int) -> tuple[int, bool]:
-        # One compiled call per step (core.step); after the first through Numba's dispatcher, later ones call the compiled
-        # function it chose (avq._numba.direct_call), skipping the typing of the records, whose types stay (_make_room,
+        # One compiled call per step (core.step); after the first through Numba's dispatcher, later ones call the
+        # function it chose (avq._numba.direct_call), which skips typing the records: their types stay (_make_room,
         # Model.reserve; x a float64 vector, r a float); an x not writable and C-contiguous goes through the dispatcher.
         env_step, S, draws, model, kernel = self.env.step, self._ag.S, self._draws, self._model, core.step
         direct = self._direct
