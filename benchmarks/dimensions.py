@@ -20,11 +20,11 @@ an exponential:
   ``collision_cut`` instead of the paper's growth on collisions and ``axis_share`` 0.8; ``avq-known1`` is ``avq``
   with ``known_after`` 1, as the mazes' entries and ``grid-ps`` have it; ``avq-goal10`` is ``avq`` with ``v_opt``
   10, the goal's reward, as they have it too; ``avq-unsettled`` is ``avq`` with ``outcome_split`` "unsettled".
-  With ``--start fixed`` (parti-game's protocol) every episode starts at the maze's fixed start near the corner ``(0, ..., 0)``, and a
-  run reaches when the greedy walk from there ends in the goal: ``OUT/data/dimensions_fixed.csv``, drawn in no
-  figure. With ``--shaped`` every agent's rewards are shaped by a potential, the negative of the goal's distance
-  in moves walls aside (``avq.envs.PotentialShaping``, ``SlabMaze.goal_distance``): the agents are told where the
-  goal is, as parti-game is; ``OUT/data/dimensions_shaped.csv`` or ``dimensions_fixed_shaped.csv``.
+  With ``--start fixed`` (parti-game's protocol) every episode starts at the maze's fixed start near the corner
+  ``(0, ..., 0)``, and a run reaches when the greedy walk from there ends in the goal:
+  ``OUT/data/dimensions_fixed.csv``, drawn in no figure. With ``--shaped`` every agent's rewards are shaped by a
+  potential, the negative of the goal's distance in moves walls aside (``avq.envs.PotentialShaping``,
+  ``SlabMaze.goal_distance``): the agents are told where the goal is, as parti-game is; ``OUT/data/dimensions_shaped.csv`` or ``dimensions_fixed_shaped.csv``.
 * ``--irrelevant``: MountainCar-v0 and CartPole-v1 with k = 0, 2, 4, 8 noise dimensions appended
   (``avq.envs.IrrelevantDims``), 300 episodes. Every k gets the agent's defaults for the task itself (which
   ``make_agent`` would replace by the general ones on a wrapped task), per-dimension settings extended over
