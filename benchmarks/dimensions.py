@@ -24,7 +24,8 @@ an exponential:
   ``(0, ..., 0)``, and a run reaches when the greedy walk from there ends in the goal:
   ``OUT/data/dimensions_fixed.csv``, drawn in no figure. With ``--shaped`` every agent's rewards are shaped by a
   potential, the negative of the goal's distance in moves walls aside (``avq.envs.PotentialShaping``,
-  ``SlabMaze.goal_distance``): the agents are told where the goal is, as parti-game is; ``OUT/data/dimensions_shaped.csv`` or ``dimensions_fixed_shaped.csv``.
+  ``SlabMaze.goal_distance``): the agents are told where the goal is, as parti-game is;
+  ``OUT/data/dimensions_shaped.csv`` or ``dimensions_fixed_shaped.csv``.
 * ``--irrelevant``: MountainCar-v0 and CartPole-v1 with k = 0, 2, 4, 8 noise dimensions appended
   (``avq.envs.IrrelevantDims``), 300 episodes. Every k gets the agent's defaults for the task itself (which
   ``make_agent`` would replace by the general ones on a wrapped task), per-dimension settings extended over
