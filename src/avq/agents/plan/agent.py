@@ -239,7 +239,7 @@ class PlanningAVQ(ScaledMetric, PlanningSettings, ModelPlanner):
         held = memory.HELD if self.compose_crossings == "noise" else 0  # (remembered, composed on noise)
         values = dict(
             self.get_params(),
-            outcome_split=2 if self.outcome_split == "unsettled" else int(self.outcome_split),
+            outcome_split=core.UNSETTLED if self.outcome_split == "unsettled" else int(self.outcome_split),
             value_slope=-1.0 if self.value_slope is None else self.value_slope,
             split_after=0 if self.split_after is None else self.split_after,
             rho=-1.0 if self.rho is None else self.rho,
