@@ -42,7 +42,9 @@ path to the goal, so it tries them all before it heads for the goal; no learning
 points whose moves from the start plus the goal's distance walls aside (``SlabMaze.goal_distance``) are at most
 that distance, the only points A* would expand before it reaches the goal; an explorer told the goal's distance
 (``--shaped``) ranks untried decisions by that sum, as A* does, though one that plans from where it stands may
-stray beyond them.
+stray beyond them. And the most of the goal's places on the lattice that any explorer not told where the goal is
+can find within ``--budget`` env steps (200,000): until its first +10 it sees the same wherever the goal is, and
+it stands on at most one point more than its moves.
 
 ``--agents dqn`` adds Stable-Baselines3's DQN with RL Baselines3 Zoo's hyper-parameters (:data:`ZOO_DQN`),
 imported only then (``pip install stable-baselines3 torch``; not an extra of avq). Its cells are the
@@ -543,14 +545,15 @@ def plot(out: Path) -> None:
         print(f"wrote {figures / 'dimensions_irrelevant.png'}")
 
 
-def lattice_table(ds: list[int]) -> None:
-    """The lattice of moves through the fixed start at each d: the goal's distance, the points nearer, and the
-    points an explorer told the goal's distance may try before it reaches the goal."""
+def lattice_table(ds: list[int], budget: int) -> None:
+    """The lattice of moves through the fixed start at each d: the goal's distance, the points nearer, the
+    points an explorer told the goal's distance may try before it reaches the goal, and the most of the goal's
+    places on the lattice that any explorer not told where it is can find within ``budget`` env steps."""
     print(
         "| d | lattice points | moves to the goal, D (without slabs) | points fewer than D - 11 moves away "
-        "| told the goal's distance h: points with moves + h <= D |"
+        f"| told the goal's distance h: points with moves + h <= D | places found within {budget:,}, at most |"
     )
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     for d in ds:
         maze = SlabMaze(dims=d, move=MOVE, layout_seed=d, start="fixed")
         dist, points = maze.lattice_distances()
@@ -561,9 +564,12 @@ def lattice_table(ds: list[int]) -> None:
         grid = np.stack(np.meshgrid(*points, indexing="ij"), axis=-1).reshape(-1, d)
         h = np.asarray(maze.goal_distance(grid)).reshape(dist.shape)
         ahead = int(((dist >= 0) & (dist + h <= steps)).sum())
+        # Until its first +10 an explorer sees the same whatever point is the goal, and it stands on at most
+        # budget + 1 points in budget moves: of the goal's places it can find at most that many.
+        found = min(1.0, (budget + 1) / int((dist >= 0).sum()))
         print(
             f"| {d} | {dist.size:,} | {steps} ({free}) | {near:,} ({near / dist.size:.0%}) "
-            f"| {ahead:,} ({ahead / dist.size:.0%}) |"
+            f"| {ahead:,} ({ahead / dist.size:.0%}) | {found:.0%} |"
         )
 
 
@@ -583,7 +589,12 @@ def main() -> None:
     ap.add_argument("--seeds", default=None, help="a range, as 0-4 (the default; --quick 0-1)")
     ap.add_argument("--d", default=None, help="comma-separated dimensions instead of 2,3,4,6,8")
     ap.add_argument("--k", default=None, help="comma-separated irrelevant dimensions instead of 0,2,4,8")
-    ap.add_argument("--budget", type=int, default=None, help="--dims: env steps a run (200,000; --quick 20,000)")
+    ap.add_argument(
+        "--budget",
+        type=int,
+        default=None,
+        help="--dims: env steps a run (200,000; --quick 20,000); --lattice: the explorer's",
+    )
     ap.add_argument("--episodes", type=int, default=None, help="--irrelevant: episodes a run (300; --quick 60)")
     ap.add_argument("--kind", choices=("noise", "walk"), default="noise", help="--irrelevant: IrrelevantDims' kind")
     ap.add_argument("--start", choices=("random", "fixed"), default="random", help="--dims: SlabMaze's start")
@@ -649,7 +660,7 @@ def main() -> None:
             ap.error(
                 f"--lattice --d {args.d}: d = {too_large} has more than {MAX_LATTICE:,} lattice points; give d up to 6"
             )
-        lattice_table(ds)
+        lattice_table(ds, args.budget or 200_000)
     if args.plot:
         plot(out)
 

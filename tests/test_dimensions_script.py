@@ -29,10 +29,26 @@ def test_lattice_prints_the_goals_distance_and_the_points_whose_untried_decision
             and dist[idx] + sum(max(0.0, 0.9 - pts[k][i]) / 0.1 for k, i in enumerate(idx)) <= steps + 1e-9
         )
         row = (
-            f"| {d} | {10**d:,} | {steps} ({9 * d}) | {near:,} ({near / 10**d:.0%}) | {ahead:,} ({ahead / 10**d:.0%}) |"
+            f"| {d} | {10**d:,} | {steps} ({9 * d}) | {near:,} ({near / 10**d:.0%}) | {ahead:,} ({ahead / 10**d:.0%}) "
+            "| 100% |"  # (200,000 env steps stand on far more points than the lattice has)
         )
         assert row in out.stdout.splitlines()
         assert np.all(dist >= 0)  # (a drawn maze leads everywhere; the goal is one lattice point, reached from outside)
+
+
+def test_lattice_bounds_the_goals_places_any_explorer_finds_within_the_budget():
+    # 49 moves stand on at most 50 of d = 2's 100 lattice points: whatever an explorer does before its first +10
+    # is the same wherever the goal is, so it finds at most half of the goal's places; 19 moves, a fifth.
+    for budget, share in ((49, "50%"), (19, "20%"), (100, "100%")):
+        out = subprocess.run(
+            [sys.executable, str(SCRIPT), "--lattice", "--d", "2", "--budget", str(budget)],
+            capture_output=True,
+            text=True,
+        )
+        assert out.returncode == 0, out.stderr
+        header, _, row = out.stdout.splitlines()[:3]
+        assert header.endswith(f"| places found within {budget:,}, at most |")
+        assert row.startswith("| 2 | 100 |") and row.endswith(f"| {share} |")
 
 
 def test_lattice_beyond_its_limit_is_refused_with_the_fix():
