@@ -60,12 +60,13 @@ def decide(ag: PlanArrays, m: ModelArrays, src, c: int, x) -> int:
 @njit(cache=True, inline="always")
 def owes_no_optimism(m: ModelArrays, s: int) -> bool:
     """``V(s)`` owes nothing directly to optimism: ``s`` is :func:`~avq.agents.plan.model.settled`, or a decision
-    it knows is worth at least an untried one (``v_opt``), so that trying the others cannot raise its value. Near
-    a goal worth more than ``v_opt`` a cell may never settle: no untried decision there is worth trying."""
+    it knows is worth more than an untried one (``v_opt``), so that the explorer never tries the others there
+    (ε aside; on a tie it may) and trying them could not raise its value. Near a goal worth more than ``v_opt`` a
+    cell may never settle: no untried decision there is worth trying."""
     if settled(m, s):
         return True
     best = -np.inf  # (the best known decision's value)
     for a in range(m.cnt.shape[1]):
         if known(m, s, a):
             best = max(best, m.Q[s, a])
-    return best >= m.MP[ModelParam.V_OPT]
+    return best > m.MP[ModelParam.V_OPT]
