@@ -593,7 +593,7 @@ def main() -> None:
         "--budget",
         type=int,
         default=None,
-        help="--dims: env steps a run (200,000; --quick 20,000); --lattice: the explorer's",
+        help="--dims: env steps a run (200,000; --quick 20,000); --lattice: the explorer's, for the last column",
     )
     ap.add_argument("--episodes", type=int, default=None, help="--irrelevant: episodes a run (300; --quick 60)")
     ap.add_argument("--kind", choices=("noise", "walk"), default="noise", help="--irrelevant: IrrelevantDims' kind")
