@@ -109,10 +109,13 @@ def test_tune_report_export_and_train_from_study(tmp_path):
     assert {k: config["params"][k] for k in best} == pytest.approx(best)
 
 
-def test_a_journal_file_works_too(tmp_path):
+def test_a_journal_file_works_too_and_without_out_says_where_the_best_entry_is(tmp_path):
     r = cli_in_process("tune", *TINY, "--n-trials", "2", "--storage", str(tmp_path / "study.log"))
     assert r.returncode == 0, r.stderr
-    _check_whole(_study(f"journal://{tmp_path / 'study.log'}"), 2, 2)
+    url = f"journal://{tmp_path / 'study.log'}"
+    _check_whole(_study(url), 2, 2)
+    assert f"best.yaml is written with --out DIR only; 'avq tune export --storage {url}' prints" in r.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["study.log"]  # (no best.yaml, no tune/ directory)
 
 
 def test_search_spaces_name_their_agents_parameters():
@@ -178,6 +181,11 @@ def test_bad_input_exits_2_and_leaves_the_study(tmp_path, monkeypatch):
         ("--episodes", "7"): ["episodes 4", "another objective"],
         ("--space", str(tmp_path / "space.yml")): ["'alhpa'", "not a parameter of agent 'tiles'"],
         ("--n-trials", "0"): ["--n-trials", "not 0"],
+        ("--set", "alpha=0.5", "--storage", f"sqlite:///{tmp_path / 'o.db'}"): [
+            "'alpha' is both searched",
+            "drop the --set",
+            "--space FILE.yaml",
+        ],
     }
     for given, says in cases.items():
         args = list(given) if given[0] in ("--agent", "--env") else [*TINY[:4], *given]
@@ -189,7 +197,7 @@ def test_bad_input_exits_2_and_leaves_the_study(tmp_path, monkeypatch):
     study = _study(url)
     _check_whole(study, 1, 1)
     assert study.user_attrs["agent"] == "tiles" and study.user_attrs["episodes"] == 4
-    assert not (tmp_path / "bar").exists()
+    assert not (tmp_path / "bar").exists() and not (tmp_path / "o.db").exists()
     monkeypatch.setitem(sys.modules, "optuna", None)
     r = cli_in_process("tune", *TINY, "--out", out)
     assert r.returncode == 2 and 'pip install "avq[tune]"' in r.stderr

@@ -259,7 +259,7 @@ def _run_and_write(
         (name, layout_arg, seed, trials, start, str(out / "models" / f"{name}__seed{seed}.zip")) for name, seed in jobs
     ]
     if log is not None and not _kernels_cached():
-        log("compiling the kernels, once for this installation (30-60 s) ...")
+        log("compiling the kernels, once for this installation (about two minutes) ...")
     # Compiled (or loaded) here, before the progress bar starts, so that its rate counts runs alone.
     warmup = sum(warm_up(name, layout_arg, start) for name in agents)
     results: list[ReproduceRun] = []

@@ -20,8 +20,8 @@ _DESCRIPTION = (
     "each trial trains on --seeds seeds and scores the mean of --metric over them. Every worker (--jobs "
     "processes here, or --backend ray|dask) and every other 'avq tune' on the same --storage and "
     "--study-name adds trials to the one study until it holds --n-trials; the same command continues a "
-    "stopped study. Prints the best trials at the end and writes DIR/best.yaml (the best parameters as an "
-    "entry of the agents' defaults). 'avq tune report' ranks a study's trials, 'avq tune export' prints that "
+    "stopped study. Prints the best trials at the end and, with --out DIR, writes DIR/best.yaml (the best "
+    "parameters as an entry of the agents' defaults). 'avq tune report' ranks a study's trials, 'avq tune export' prints that "
     "entry, and 'avq train --from-study STORAGE' trains with the best parameters. Needs the extra avq[tune]."
 )
 
@@ -118,6 +118,12 @@ def cmd_tune(args: argparse.Namespace) -> int:
     print(report(summary["storage"], summary["study_name"], top=args.top))
     if summary["best_yaml"]:
         print(f"wrote {summary['best_yaml']} (the best parameters as an entry of avq/agents/defaults/<agent>.yaml)")
+    elif args.out is None:
+        name = f" --study-name {summary['study_name']}" if args.study_name else ""
+        print(
+            f"best.yaml is written with --out DIR only; 'avq tune export --storage {summary['storage']}{name}' "
+            "prints the best parameters as an entry of the agents' defaults"
+        )
     return 0 if summary["complete"] else 1
 
 

@@ -130,4 +130,7 @@ def check_space(space: dict[str, Range], agent: str, env_id: str, fixed: dict[st
                 "Remove it from the space or give another with --space FILE.yaml"
             )
         if name in fixed:
-            raise ValueError(f"{name!r} is both searched ({where}) and fixed with --set; drop one of them")
+            raise ValueError(
+                f"{name!r} is both searched ({where}) and fixed with --set; drop the --set, or search without it: "
+                "--space FILE.yaml with a 'search' that leaves it out (docs/how-to/tuning.md)"
+            )
