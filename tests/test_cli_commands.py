@@ -181,6 +181,18 @@ def test_a_long_evaluation_shows_progress_but_not_into_a_file(cliff_run, capsys)
     assert capsys.readouterr().err == ""
 
 
+def test_evaluate_says_what_success_is_where_it_is_lasting_until_the_time_limit(tmp_path, capsys):
+    out = tmp_path / "cp"
+    args = ["train", "--env", "CartPole-v1", "--agent", "tabular", "--episodes", "2", "--out", str(out)]
+    assert main([*args, "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(out), "--episodes", "2", "--json"]) == 0
+    rate = json.loads(capsys.readouterr().out)["success_rate"]
+    assert main(["evaluate", str(out), "--episodes", "2"]) == 0
+    line = capsys.readouterr().out.splitlines()[0]
+    assert line.endswith(f", success {rate:.0%} (episodes that lasted until the time limit)")
+
+
 # -- 7: avq evaluate on a model file ---------------------------------------------------------------------------
 
 

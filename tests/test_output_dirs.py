@@ -98,6 +98,7 @@ def test_train_refuses_a_run_stopped_before_its_first_checkpoint_and_resume_cont
     line = one_line_error(avq_cli(*args, "--seed", "1", "--out", run))
     assert f"{run} holds a run stopped before its first checkpoint" in line
     assert f"avq train --resume {run}" in line and "choose another --out" in line
+    assert f"to start again with other settings, remove {run} (it holds no checkpoint" in line
     assert (run / "config.yml").read_bytes() == config and sorted(
         p.name for p in run.iterdir() if p.name != ".avq.lock"
     ) == ["config.yml"]

@@ -110,7 +110,9 @@ def _check_new_run_dir(out: Path) -> None:
     if (out / "config.yml").exists():
         raise ValueError(
             f"{out} holds a run stopped before its first checkpoint (its config.yml); continue it "
-            f"with 'avq train --resume {out}' (from episode 0), or choose another --out"
+            f"with 'avq train --resume {out}' (from episode 0, with that config), or, to start again with other "
+            f"settings, remove {out} (it holds no checkpoint: --resume too would start from episode 0) or choose "
+            "another --out"
         )
     check_output_dir(out, "avq train")
 

@@ -294,6 +294,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``avq evaluate``: the greedy policy of a run or model file, as a line or ``--json``."""
     import json
 
+    from avq.evaluation import SUCCESS_RULES
     from avq.runs import evaluate_run
 
     report = evaluate_run(
@@ -315,6 +316,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     )
     if report["success_rate"] is not None:
         line += f", success {report['success_rate']:.0%}"
+        if SUCCESS_RULES.get(report["env"]) == "truncated":
+            line += " (episodes that lasted until the time limit)"
     print(line)
     if report["capped"]:
         print(
