@@ -190,7 +190,7 @@ def test_evaluate_says_what_success_is_where_it_is_lasting_until_the_time_limit(
     rate = json.loads(capsys.readouterr().out)["success_rate"]
     assert main(["evaluate", str(out), "--episodes", "2"]) == 0
     line = capsys.readouterr().out.splitlines()[0]
-    assert line.endswith(f", success {rate:.0%} (episodes that lasted until the time limit)")
+    assert line.endswith(f", success {rate:.0%} (episodes that lasted until the time limit or --max-steps)")
 
 
 # -- 7: avq evaluate on a model file ---------------------------------------------------------------------------

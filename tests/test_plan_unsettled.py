@@ -89,6 +89,7 @@ def test_on_the_slab_maze_the_unsettled_outcomes_reach_90_percent_where_the_defa
 def test_where_every_reward_is_a_cost_the_option_changes_nothing():
     # MountainCar: -1 a step, so v_opt "auto" is 0 and every known decision is worth less: no cell's value owes
     # nothing to optimism but a settled one's, and the split compares what the default compares, run for run.
+    # (A known decision worth exactly v_opt, where "more than" and "at least" differ, is the first test's.)
     def run(outcome_split):
         agent = avq.make_agent("avq", gym.make("MountainCar-v0"), seed=3, outcome_split=outcome_split)
         return agent.learn(total_timesteps=6_000)

@@ -114,7 +114,10 @@ def test_a_journal_file_works_too_and_without_out_says_where_the_best_entry_is(t
     assert r.returncode == 0, r.stderr
     url = f"journal://{tmp_path / 'study.log'}"
     _check_whole(_study(url), 2, 2)
-    assert f"best.yaml is written with --out DIR only; 'avq tune export --storage {url}' prints" in r.stdout
+    export = f"avq tune export --storage {url} --study-name tiles-MountainCar-v0"
+    assert f"best.yaml is written with --out DIR only; '{export}' prints" in r.stdout
+    r = cli_in_process(*export.split()[1:])  # (the command it names works)
+    assert r.returncode == 0 and "MountainCar-v0:" in r.stdout
     assert sorted(p.name for p in tmp_path.iterdir()) == ["study.log"]  # (no best.yaml, no tune/ directory)
 
 

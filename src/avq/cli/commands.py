@@ -317,7 +317,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if report["success_rate"] is not None:
         line += f", success {report['success_rate']:.0%}"
         if SUCCESS_RULES.get(report["env"]) == "truncated":
-            line += " (episodes that lasted until the time limit)"
+            line += " (episodes that lasted until the time limit or --max-steps)"
     print(line)
     if report["capped"]:
         print(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import shlex
 import sys
 from pathlib import Path
 from typing import Any
@@ -98,6 +99,7 @@ def _storage(args: argparse.Namespace) -> str:
 def cmd_tune(args: argparse.Namespace) -> int:
     """``avq tune``: tune, then print the report; ``report`` and ``export`` read a study."""
     from avq.tune import best_entry, report, require_optuna
+    from avq.tune.storage import shown
 
     require_optuna()
     if args.action != "run":
@@ -118,11 +120,13 @@ def cmd_tune(args: argparse.Namespace) -> int:
     print(report(summary["storage"], summary["study_name"], top=args.top))
     if summary["best_yaml"]:
         print(f"wrote {summary['best_yaml']} (the best parameters as an entry of avq/agents/defaults/<agent>.yaml)")
-    elif args.out is None:
-        name = f" --study-name {summary['study_name']}" if args.study_name else ""
+    elif args.out is None and summary["complete"]:
+        export = shlex.join(
+            ["avq", "tune", "export", "--storage", shown(summary["storage"]), "--study-name", summary["study_name"]]
+        )
         print(
-            f"best.yaml is written with --out DIR only; 'avq tune export --storage {summary['storage']}{name}' "
-            "prints the best parameters as an entry of the agents' defaults"
+            f"best.yaml is written with --out DIR only; '{export}' prints the best parameters as an entry of the "
+            "agents' defaults"
         )
     return 0 if summary["complete"] else 1
 
